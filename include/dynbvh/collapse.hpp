@@ -1,0 +1,296 @@
+/// @file collapse.hpp
+/// The step every builder ends with: a raw binary tree whose leaves are single
+/// references becomes the final `Bvh` layout. In one parallel bottom-up pass it
+/// computes node boxes and decides, by the surface area heuristic, which subtrees
+/// become leaves (leaf collapse: leaf cost Ci*A*N against Ct*A + children, N <= max_leaf_size);
+/// then a parallel top-down pass writes nodes in depth-first order (root at 0, siblings
+/// adjacent) and leaf references contiguously. Subtrees that would make the tree deeper
+/// than `max_depth` are rebuilt balanced (median splits), so traversal's fixed stack never overflows.
+#pragma once
+
+#include <algorithm>
+#include <atomic>
+#include <cstdint>
+#include <limits>
+#include <memory>
+#include <span>
+#include <vector>
+
+#include "bvh.hpp"
+#include "executor.hpp"
+#include "references.hpp"
+
+namespace dynbvh {
+
+/// Leaf collapse knobs shared by every builder.
+struct LeafConfig {
+    std::uint32_t max_leaf_size = 8;  ///< most references in one leaf (1 disables collapsing)
+    float traversal_cost = 3.0f;      ///< Ct of the collapse decision (study: 3)
+    float intersection_cost = 2.0f;   ///< Ci of the collapse decision (study: 2)
+};
+
+/// A builder's raw output: topology only. Inner nodes are 0 .. left.size()-1 in any order;
+/// a child id with `leaf_flag` set is a reference index (into References) instead.
+struct BinaryTree {
+    static constexpr std::uint32_t leaf_flag = 0x80000000u;
+    std::vector<std::uint32_t> left, right;
+    std::uint32_t root = leaf_flag;   ///< an inner node, or (0 | leaf_flag) when there is exactly one reference
+
+    static constexpr bool is_leaf(std::uint32_t id) noexcept { return (id & leaf_flag) != 0; }
+    static constexpr std::uint32_t ref_of(std::uint32_t id) noexcept { return id & ~leaf_flag; }
+    static constexpr std::uint32_t leaf(std::uint32_t ref) noexcept { return ref | leaf_flag; }
+    std::size_t inner_count() const noexcept { return left.size(); }
+};
+
+/// Turns a raw tree over `refs` into the final layout (see the file comment).
+/// For prim::precomputed the leaf triangles are copied from `tris`. O(n) work, parallel.
+template <class NodeT, class Prim, class T, class Exec>
+Bvh<NodeT, Prim> emit_bvh(const BinaryTree& tree, const References<T>& refs, std::span<const Triangle<T>> tris,
+                          const LeafConfig& cfg, const Exec& ex);
+
+namespace detail {
+
+/// Per raw inner node facts computed bottom-up by emit_bvh.
+template <class T>
+struct RawNodeInfo {
+    AABB<T> box;
+    float cost = 0;                ///< SAH cost of the subtree as it will be emitted
+    std::uint32_t refs = 0;        ///< references below
+    std::uint32_t size = 0;        ///< emitted nodes in the subtree (1 when collapsed to a leaf)
+    std::uint32_t height = 0;      ///< emitted height (0 when collapsed)
+    bool collapsed = false;
+};
+
+/// Emission state shared by the top-down workers.
+template <class NodeT, class T>
+struct Emitter {
+    const BinaryTree& tree;
+    const References<T>& refs;
+    std::vector<RawNodeInfo<T>>& info;
+    std::vector<NodeT>& nodes;
+    std::vector<typename NodeT::index_type>& prim_ids;
+
+    struct Item {
+        std::uint32_t id;    ///< raw child id (inner node or leaf-flagged reference)
+        std::uint32_t pos;   ///< output position of this node
+        std::uint32_t free;  ///< first output slot for its descendants
+        std::uint32_t ref;   ///< first prim_ids slot of its references
+        std::uint32_t depth;
+    };
+
+    std::uint32_t refs_of(std::uint32_t id) const { return BinaryTree::is_leaf(id) ? 1u : info[id].refs; }
+    std::uint32_t size_of(std::uint32_t id) const { return BinaryTree::is_leaf(id) ? 1u : info[id].size; }
+    std::uint32_t height_of(std::uint32_t id) const { return BinaryTree::is_leaf(id) ? 0u : info[id].height; }
+    bool emits_leaf(std::uint32_t id) const { return BinaryTree::is_leaf(id) || info[id].collapsed; }
+    AABB<T> box_of(std::uint32_t id) const { return BinaryTree::is_leaf(id) ? refs.box[BinaryTree::ref_of(id)] : info[id].box; }
+    static std::uint32_t ceil_log2(std::uint32_t k) {
+        std::uint32_t h = 0;
+        while ((std::uint64_t(1) << h) < k) ++h;
+        return h;
+    }
+    /// True when the subtree at `id` (at `depth`) must be rebuilt balanced to respect max_depth:
+    /// it is too deep and at least one child could not fix itself one level down.
+    bool must_rebalance(std::uint32_t id, std::uint32_t depth) const {
+        if (emits_leaf(id) || depth + height_of(id) <= max_depth) return false;
+        for (std::uint32_t c : {tree.left[id], tree.right[id]})
+            if (!emits_leaf(c) && ceil_log2((size_of(c) + 1) / 2) > max_depth - depth - 1) return true;
+        return false;
+    }
+
+    /// Writes a leaf holding every reference below `id`, deduplicating fragments of one triangle.
+    void write_leaf(const Item& it, std::vector<std::uint32_t>& stack) {
+        auto* out = prim_ids.data() + it.ref;
+        std::uint32_t n = 0;
+        stack.clear();
+        stack.push_back(it.id);
+        while (!stack.empty()) {
+            const std::uint32_t c = stack.back();
+            stack.pop_back();
+            if (BinaryTree::is_leaf(c)) out[n++] = static_cast<typename NodeT::index_type>(refs.prim[BinaryTree::ref_of(c)]);
+            else { stack.push_back(tree.right[c]); stack.push_back(tree.left[c]); }
+        }
+        std::uint32_t count = n;
+        if (n > 1) {
+            std::sort(out, out + n);
+            count = static_cast<std::uint32_t>(std::unique(out, out + n) - out);
+            for (std::uint32_t k = count; k < n; ++k) out[k] = out[count - 1];   // unused slots stay valid ids
+        }
+        NodeT& node = nodes[it.pos];
+        node.set_bounds(box_of(it.id));
+        node.index = it.ref;
+        node.count = count;
+    }
+
+    /// Emits the subtree of `root` depth first; returns its deepest level.
+    std::uint32_t emit_subtree(const Item& root) {
+        std::vector<Item> work{root};
+        std::vector<std::uint32_t> scratch;
+        std::uint32_t deepest = root.depth;
+        while (!work.empty()) {
+            const Item it = work.back();
+            work.pop_back();
+            deepest = std::max(deepest, it.depth);
+            if (emits_leaf(it.id)) { write_leaf(it, scratch); continue; }
+            if (must_rebalance(it.id, it.depth)) { deepest = std::max(deepest, rebalance(it)); continue; }
+            NodeT& node = nodes[it.pos];
+            node.set_bounds(info[it.id].box);
+            node.index = it.free;
+            node.count = 0;
+            const std::uint32_t l = tree.left[it.id], r = tree.right[it.id];
+            work.push_back({r, it.free + 1, it.free + 2 + size_of(l) - 1, it.ref + refs_of(l), it.depth + 1});
+            work.push_back({l, it.free, it.free + 2, it.ref, it.depth + 1});
+        }
+        return deepest;
+    }
+
+    /// Rebuilds the subtree at `it` as a balanced tree over its emitted leaves (median splits of
+    /// leaf centres along the widest axis). Same leaves, so the same node and reference counts.
+    std::uint32_t rebalance(const Item& it) {
+        struct Leaf { std::uint32_t id; std::uint32_t refs; AABB<T> box; };
+        std::vector<Leaf> leaves;
+        std::vector<std::uint32_t> stack{it.id};
+        while (!stack.empty()) {
+            const std::uint32_t c = stack.back();
+            stack.pop_back();
+            if (emits_leaf(c)) leaves.push_back({c, refs_of(c), box_of(c)});
+            else { stack.push_back(tree.right[c]); stack.push_back(tree.left[c]); }
+        }
+        struct Range { std::uint32_t begin, end, pos, free, ref, depth; };
+        std::vector<Range> work{{0, std::uint32_t(leaves.size()), it.pos, it.free, it.ref, it.depth}};
+        std::vector<std::uint32_t> scratch;
+        std::uint32_t deepest = it.depth;
+        while (!work.empty()) {
+            const Range r = work.back();
+            work.pop_back();
+            deepest = std::max(deepest, r.depth);
+            if (r.end - r.begin == 1) {
+                write_leaf({leaves[r.begin].id, r.pos, r.free, r.ref, r.depth}, scratch);
+                continue;
+            }
+            AABB<T> box, centres;
+            for (std::uint32_t k = r.begin; k < r.end; ++k) { box.extend(leaves[k].box); centres.extend(leaves[k].box.center()); }
+            const int axis = largest_axis(centres.diagonal());
+            const std::uint32_t mid = r.begin + (r.end - r.begin) / 2;
+            std::nth_element(leaves.begin() + r.begin, leaves.begin() + mid, leaves.begin() + r.end,
+                             [axis](const Leaf& a, const Leaf& b) { return a.box.center()[axis] < b.box.center()[axis]; });
+            std::uint32_t left_refs = 0;
+            for (std::uint32_t k = r.begin; k < mid; ++k) left_refs += leaves[k].refs;
+            const std::uint32_t left_size = 2 * (mid - r.begin) - 1;
+            NodeT& node = nodes[r.pos];
+            node.set_bounds(box);
+            node.index = r.free;
+            node.count = 0;
+            work.push_back({mid, r.end, r.free + 1, r.free + 2 + left_size - 1, r.ref + left_refs, r.depth + 1});
+            work.push_back({r.begin, mid, r.free, r.free + 2, r.ref, r.depth + 1});
+        }
+        return deepest;
+    }
+};
+
+} // namespace detail
+
+template <class NodeT, class Prim, class T, class Exec>
+Bvh<NodeT, Prim> emit_bvh(const BinaryTree& tree, const References<T>& refs, std::span<const Triangle<T>> tris,
+                          const LeafConfig& cfg, const Exec& ex) {
+    using Info = detail::RawNodeInfo<T>;
+    Bvh<NodeT, Prim> bvh;
+    bvh.primitive_count = refs.primitive_count;
+    bvh.excluded = refs.excluded;
+    const std::size_t n_refs = refs.size();
+    if (n_refs == 0) return bvh;
+    const std::size_t n_inner = tree.inner_count();
+    constexpr std::uint32_t none = std::numeric_limits<std::uint32_t>::max();
+    const auto max_leaf = std::max<std::uint32_t>(1, cfg.max_leaf_size);
+    const float ct = cfg.traversal_cost, ci = cfg.intersection_cost;
+
+    // Parents of inner nodes; each node's arrival count starts at its number of reference children.
+    std::vector<std::uint32_t> parent(n_inner, none);
+    std::unique_ptr<std::atomic<std::uint32_t>[]> arrivals(new std::atomic<std::uint32_t>[n_inner]);
+    ex.for_each(0, n_inner, [&](std::size_t i) {
+        std::uint32_t leaves = 0;
+        for (std::uint32_t c : {tree.left[i], tree.right[i]}) {
+            if (BinaryTree::is_leaf(c)) ++leaves;
+            else parent[c] = std::uint32_t(i);
+        }
+        arrivals[i].store(leaves, std::memory_order_relaxed);
+    });
+
+    // Bottom-up, starting at nodes whose children are both references and walking up while the
+    // sibling subtree is finished (Karras 2012 style); index order keeps the walks local in memory.
+    std::vector<Info> info(n_inner);
+    auto child_facts = [&](std::uint32_t c, AABB<T>& box, float& cost, std::uint32_t& cnt, std::uint32_t& size, std::uint32_t& h) {
+        if (BinaryTree::is_leaf(c)) {
+            box = refs.box[BinaryTree::ref_of(c)];
+            cost = ci * float(box.half_area());
+            cnt = 1; size = 1; h = 0;
+        } else {
+            const Info& f = info[c];
+            box = f.box; cost = f.cost; cnt = f.refs; size = f.size; h = f.height;
+        }
+    };
+    auto compute = [&](std::uint32_t p) {
+        AABB<T> bl, br;
+        float cl, cr;
+        std::uint32_t nl, nr, sl, sr, hl, hr;
+        child_facts(tree.left[p], bl, cl, nl, sl, hl);
+        child_facts(tree.right[p], br, cr, nr, sr, hr);
+        Info& f = info[p];
+        f.box = merge(bl, br);
+        f.refs = nl + nr;
+        const float area = float(f.box.half_area());
+        const float split_cost = ct * area + cl + cr;
+        const float leaf_cost = ci * area * float(f.refs);
+        f.collapsed = f.refs <= max_leaf && leaf_cost <= split_cost;
+        if (f.collapsed) { f.cost = leaf_cost; f.size = 1; f.height = 0; }
+        else { f.cost = split_cost; f.size = 1 + sl + sr; f.height = 1 + std::max(hl, hr); }
+    };
+    ex.for_each(0, n_inner, [&](std::size_t i) {
+        if (!BinaryTree::is_leaf(tree.left[i]) || !BinaryTree::is_leaf(tree.right[i])) return;
+        std::uint32_t p = std::uint32_t(i);
+        compute(p);
+        for (p = parent[p]; p != none; p = parent[p]) {
+            if (arrivals[p].fetch_add(1, std::memory_order_acq_rel) == 0) return;   // sibling not done yet
+            compute(p);
+        }
+    });
+
+    detail::Emitter<NodeT, T> em{tree, refs, info, bvh.nodes, bvh.prim_ids};
+    const std::uint32_t root = tree.root;
+    bvh.nodes.resize(em.size_of(root));
+    bvh.prim_ids.resize(n_refs);
+
+    // Split the top of the tree into independent subtrees, then emit those in parallel.
+    using Item = typename detail::Emitter<NodeT, T>::Item;
+    std::vector<Item> top, items{{root, 0, 1, 0, 0}};
+    const std::uint32_t grain = std::max<std::uint32_t>(1024, em.size_of(root) / std::uint32_t(64 * ex.concurrency()));
+    std::uint32_t deepest = 0;
+    for (std::size_t k = 0; k < items.size(); ++k) {
+        const Item it = items[k];
+        if (em.size_of(it.id) <= grain || em.emits_leaf(it.id) || em.must_rebalance(it.id, it.depth)) {
+            top.push_back(it);
+            continue;
+        }
+        NodeT& node = bvh.nodes[it.pos];
+        node.set_bounds(info[it.id].box);
+        node.index = it.free;
+        node.count = 0;
+        deepest = std::max(deepest, it.depth);
+        const std::uint32_t l = tree.left[it.id], r = tree.right[it.id];
+        items.push_back({l, it.free, it.free + 2, it.ref, it.depth + 1});
+        items.push_back({r, it.free + 1, it.free + 2 + em.size_of(l) - 1, it.ref + em.refs_of(l), it.depth + 1});
+    }
+    std::vector<std::uint32_t> depths(top.size());
+    ex.for_tasks(top.size(), [&](std::size_t k) { depths[k] = em.emit_subtree(top[k]); });
+    for (std::uint32_t d : depths) deepest = std::max(deepest, d);
+    bvh.depth = deepest;
+
+    if constexpr (Bvh<NodeT, Prim>::precomputed) {
+        bvh.leaf_triangles.resize(n_refs);
+        ex.for_each(0, n_refs, [&](std::size_t s) { bvh.leaf_triangles[s] = tris[bvh.prim_ids[s]]; });
+    } else {
+        (void)tris;
+    }
+    return bvh;
+}
+
+} // namespace dynbvh

@@ -1,0 +1,83 @@
+/// @file radix_sort.hpp
+/// Parallel stable LSD radix sort of unsigned keys with a payload, shared by every
+/// Morton-ordered builder. 8-bit digits; each pass builds per-task histograms, scans
+/// them (digit-major) and scatters; a pass whose digit is the same for every key is skipped.
+/// O(n * passes) work, O(n) extra memory.
+#pragma once
+
+#include <algorithm>
+#include <array>
+#include <cstdint>
+#include <type_traits>
+#include <vector>
+
+#include "executor.hpp"
+
+namespace dynbvh {
+
+/// Sorts `keys` ascending and applies the same permutation to `values` (stable).
+/// Only the low `key_bits` bits are examined (higher bits must be zero, e.g. 30 for 30-bit Morton codes).
+template <class Key, class Value, class Exec>
+void radix_sort(std::vector<Key>& keys, std::vector<Value>& values, const Exec& ex,
+                int key_bits = int(sizeof(Key) * 8)) {
+    static_assert(std::is_unsigned_v<Key>);
+    constexpr int digit_bits = 8;
+    constexpr std::size_t buckets = std::size_t(1) << digit_bits;
+    const std::size_t n = keys.size();
+    if (n < 2) return;
+
+    std::size_t tasks = std::min<std::size_t>(ex.concurrency(), std::max<std::size_t>(1, n / 65536));
+    if (tasks == 0) tasks = 1;
+    const std::size_t chunk = (n + tasks - 1) / tasks;
+
+    std::vector<Key> keys_tmp(n);
+    std::vector<Value> values_tmp(n);
+    std::vector<std::size_t> hist(tasks * buckets);
+    Key* src_k = keys.data();
+    Key* dst_k = keys_tmp.data();
+    Value* src_v = values.data();
+    Value* dst_v = values_tmp.data();
+
+    for (int shift = 0; shift < key_bits; shift += digit_bits) {
+        ex.for_tasks(tasks, [&](std::size_t t) {
+            std::size_t* h = hist.data() + t * buckets;
+            std::fill(h, h + buckets, std::size_t(0));
+            const std::size_t lo = std::min(n, t * chunk), hi = std::min(n, lo + chunk);
+            for (std::size_t i = lo; i < hi; ++i) ++h[(src_k[i] >> shift) & (buckets - 1)];
+        });
+        // Skip the pass when one digit value holds every key.
+        bool trivial = false;
+        for (std::size_t d = 0; d < buckets && !trivial; ++d) {
+            std::size_t total = 0;
+            for (std::size_t t = 0; t < tasks; ++t) total += hist[t * buckets + d];
+            if (total == n) trivial = true;
+            else if (total != 0) break;
+        }
+        if (trivial) continue;
+        // Digit-major exclusive scan: all of digit 0 (task 0, 1, ...), then digit 1, ...
+        std::size_t sum = 0;
+        for (std::size_t d = 0; d < buckets; ++d)
+            for (std::size_t t = 0; t < tasks; ++t) {
+                const std::size_t c = hist[t * buckets + d];
+                hist[t * buckets + d] = sum;
+                sum += c;
+            }
+        ex.for_tasks(tasks, [&](std::size_t t) {
+            std::size_t* h = hist.data() + t * buckets;
+            const std::size_t lo = std::min(n, t * chunk), hi = std::min(n, lo + chunk);
+            for (std::size_t i = lo; i < hi; ++i) {
+                const std::size_t pos = h[(src_k[i] >> shift) & (buckets - 1)]++;
+                dst_k[pos] = src_k[i];
+                dst_v[pos] = src_v[i];
+            }
+        });
+        std::swap(src_k, dst_k);
+        std::swap(src_v, dst_v);
+    }
+    if (src_k != keys.data()) {
+        keys.swap(keys_tmp);
+        values.swap(values_tmp);
+    }
+}
+
+} // namespace dynbvh

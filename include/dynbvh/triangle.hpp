@@ -1,0 +1,60 @@
+/// @file triangle.hpp
+/// The triangle the library builds over, and the helpers that turn the user's
+/// triangles into the per-primitive boxes and centroids every builder starts from.
+#pragma once
+
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include "aabb.hpp"
+
+namespace dynbvh {
+
+/// A triangle by its three vertices (36 bytes for float). Users holding indexed
+/// meshes flatten them with `make_triangles` once per frame.
+template <class T>
+struct Triangle {
+    Vec3<T> p0, p1, p2;
+
+    constexpr AABB<T> bounds() const noexcept { AABB<T> b; b.extend(p0).extend(p1).extend(p2); return b; }
+    constexpr Vec3<T> centroid() const noexcept { return (p0 + p1 + p2) * (T(1) / T(3)); }
+    /// Geometric (unnormalised) normal, (p1 - p0) x (p2 - p0).
+    constexpr Vec3<T> normal() const noexcept { return cross(p1 - p0, p2 - p0); }
+    /// Area in square scene units.
+    T area() const noexcept { return T(0.5) * length(normal()); }
+    bool is_finite() const noexcept { return dynbvh::is_finite(p0) && dynbvh::is_finite(p1) && dynbvh::is_finite(p2); }
+};
+
+using Trianglef = Triangle<float>;
+using Triangled = Triangle<double>;
+
+/// Flattens an indexed mesh into triangles. Indices out of range throw std::out_of_range.
+template <class T, class Index>
+std::vector<Triangle<T>> make_triangles(std::span<const Vec3<T>> vertices, std::span<const Index> indices);
+
+} // namespace dynbvh
+
+#include <stdexcept>
+#include <string>
+
+namespace dynbvh {
+
+template <class T, class Index>
+std::vector<Triangle<T>> make_triangles(std::span<const Vec3<T>> vertices, std::span<const Index> indices) {
+    if (indices.size() % 3 != 0)
+        throw std::invalid_argument("dynbvh::make_triangles: index count " + std::to_string(indices.size()) + " is not a multiple of 3");
+    std::vector<Triangle<T>> out(indices.size() / 3);
+    for (std::size_t t = 0; t < out.size(); ++t) {
+        for (int k = 0; k < 3; ++k) {
+            const auto i = static_cast<std::uint64_t>(indices[3 * t + k]);
+            if (i >= vertices.size())
+                throw std::out_of_range("dynbvh::make_triangles: triangle " + std::to_string(t) + " uses vertex " +
+                                        std::to_string(i) + " but there are " + std::to_string(vertices.size()));
+        }
+        out[t] = {vertices[indices[3 * t]], vertices[indices[3 * t + 1]], vertices[indices[3 * t + 2]]};
+    }
+    return out;
+}
+
+} // namespace dynbvh

@@ -1,0 +1,16 @@
+#!/usr/bin/env bash
+# Installs the Debian packages dynbvh's tests, benchmarks and study use, when missing.
+# Usage: tools/deps.sh            (needs root or sudo; does nothing when all are present)
+set -euo pipefail
+pkgs=(g++ cmake make doctest-dev libtbb-dev libtinyobjloader-dev libbenchmark-dev libembree-dev libstb-dev)
+missing=()
+for p in "${pkgs[@]}"; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+done
+[ ${#missing[@]} -eq 0 ] && exit 0
+echo "dynbvh: installing ${missing[*]}" >&2
+SUDO=""
+[ "$(id -u)" -ne 0 ] && SUDO="sudo"
+export DEBIAN_FRONTEND=noninteractive
+$SUDO apt-get update -qq
+$SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null

@@ -1,0 +1,22 @@
+#!/usr/bin/env bash
+# Runs every dynbvh test: a -Werror build with all backends (serial, OpenMP, TBB), then the
+# same tests under AddressSanitizer + UndefinedBehaviorSanitizer. Installs what it needs.
+# Usage: tools/test.sh            (from anywhere; build trees go to build/test and build/asan)
+set -euo pipefail
+root=$(cd "$(dirname "$0")/.." && pwd)
+cd "$root"
+bash tools/deps.sh
+jobs=$(nproc)
+common=(-DDYNBVH_BUILD_TESTS=ON -DDYNBVH_BUILD_BENCH=ON -DDYNBVH_BUILD_EXAMPLES=ON -DDYNBVH_WERROR=ON)
+
+echo "== dynbvh tests (Release, -Werror) =="
+cmake -S . -B build/test -DCMAKE_BUILD_TYPE=Release "${common[@]}" >/dev/null
+cmake --build build/test -j"$jobs"
+(cd build/test && ctest --output-on-failure -j"$jobs")
+
+echo "== dynbvh tests under AddressSanitizer + UndefinedBehaviorSanitizer =="
+cmake -S . -B build/asan -DCMAKE_BUILD_TYPE=Debug -DCMAKE_CXX_FLAGS_DEBUG="-O1 -g" -DDYNBVH_SANITIZE=ON \
+  -DDYNBVH_BUILD_TESTS=ON -DDYNBVH_BUILD_BENCH=OFF -DDYNBVH_BUILD_EXAMPLES=OFF -DDYNBVH_WERROR=ON >/dev/null
+cmake --build build/asan -j"$jobs"
+(cd build/asan && ASAN_OPTIONS=detect_leaks=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
+  DYNBVH_SANITIZED=1 ctest --output-on-failure -j"$jobs")
