@@ -19,6 +19,7 @@
 #include "bvh.hpp"
 #include "executor.hpp"
 #include "references.hpp"
+#include "scratch.hpp"
 
 namespace dynbvh {
 
@@ -33,7 +34,7 @@ struct LeafConfig {
 /// a child id with `leaf_flag` set is a reference index (into References) instead.
 struct BinaryTree {
     static constexpr std::uint32_t leaf_flag = 0x80000000u;
-    std::vector<std::uint32_t> left, right;
+    scratch_vector<std::uint32_t> left, right;
     std::uint32_t root = leaf_flag;   ///< an inner node, or (0 | leaf_flag) when there is exactly one reference
 
     static constexpr bool is_leaf(std::uint32_t id) noexcept { return (id & leaf_flag) != 0; }
@@ -53,12 +54,13 @@ namespace detail {
 /// Per raw inner node facts computed bottom-up by emit_bvh.
 template <class T>
 struct RawNodeInfo {
-    AABB<T> box;
-    float cost = 0;                ///< SAH cost of the subtree as it will be emitted
-    std::uint32_t refs = 0;        ///< references below
-    std::uint32_t size = 0;        ///< emitted nodes in the subtree (1 when collapsed to a leaf)
-    std::uint32_t height = 0;      ///< emitted height (0 when collapsed)
-    bool collapsed = false;
+    Vec3<T> min, max;         ///< box (kept as two corners: no initialisation, written once)
+    float cost;               ///< SAH cost of the subtree as it will be emitted
+    std::uint32_t refs;       ///< references below
+    std::uint32_t size;       ///< emitted nodes in the subtree (1 when collapsed to a leaf)
+    std::uint32_t height;     ///< emitted height (0 when collapsed)
+    bool collapsed;
+    AABB<T> box() const noexcept { return {min, max}; }
 };
 
 /// Emission state shared by the top-down workers.
@@ -66,7 +68,7 @@ template <class NodeT, class T>
 struct Emitter {
     const BinaryTree& tree;
     const References<T>& refs;
-    std::vector<RawNodeInfo<T>>& info;
+    scratch_vector<RawNodeInfo<T>>& info;
     std::vector<NodeT>& nodes;
     std::vector<typename NodeT::index_type>& prim_ids;
 
@@ -82,7 +84,7 @@ struct Emitter {
     std::uint32_t size_of(std::uint32_t id) const { return BinaryTree::is_leaf(id) ? 1u : info[id].size; }
     std::uint32_t height_of(std::uint32_t id) const { return BinaryTree::is_leaf(id) ? 0u : info[id].height; }
     bool emits_leaf(std::uint32_t id) const { return BinaryTree::is_leaf(id) || info[id].collapsed; }
-    AABB<T> box_of(std::uint32_t id) const { return BinaryTree::is_leaf(id) ? refs.box[BinaryTree::ref_of(id)] : info[id].box; }
+    AABB<T> box_of(std::uint32_t id) const { return BinaryTree::is_leaf(id) ? refs.box[BinaryTree::ref_of(id)] : info[id].box(); }
     static std::uint32_t ceil_log2(std::uint32_t k) {
         std::uint32_t h = 0;
         while ((std::uint64_t(1) << h) < k) ++h;
@@ -133,7 +135,7 @@ struct Emitter {
             if (emits_leaf(it.id)) { write_leaf(it, scratch); continue; }
             if (must_rebalance(it.id, it.depth)) { deepest = std::max(deepest, rebalance(it)); continue; }
             NodeT& node = nodes[it.pos];
-            node.set_bounds(info[it.id].box);
+            node.set_bounds(info[it.id].box());
             node.index = it.free;
             node.count = 0;
             const std::uint32_t l = tree.left[it.id], r = tree.right[it.id];
@@ -204,8 +206,9 @@ Bvh<NodeT, Prim> emit_bvh(const BinaryTree& tree, const References<T>& refs, std
     const float ct = cfg.traversal_cost, ci = cfg.intersection_cost;
 
     // Parents of inner nodes; each node's arrival count starts at its number of reference children.
-    std::vector<std::uint32_t> parent(n_inner, none);
-    std::unique_ptr<std::atomic<std::uint32_t>[]> arrivals(new std::atomic<std::uint32_t>[n_inner]);
+    scratch_vector<std::uint32_t> parent(n_inner);
+    scratch_vector<std::atomic<std::uint32_t>> arrivals(n_inner);
+    if (n_inner) parent[tree.root] = none;
     ex.for_each(0, n_inner, [&](std::size_t i) {
         std::uint32_t leaves = 0;
         for (std::uint32_t c : {tree.left[i], tree.right[i]}) {
@@ -217,7 +220,7 @@ Bvh<NodeT, Prim> emit_bvh(const BinaryTree& tree, const References<T>& refs, std
 
     // Bottom-up, starting at nodes whose children are both references and walking up while the
     // sibling subtree is finished (Karras 2012 style); index order keeps the walks local in memory.
-    std::vector<Info> info(n_inner);
+    scratch_vector<Info> info(n_inner);
     auto child_facts = [&](std::uint32_t c, AABB<T>& box, float& cost, std::uint32_t& cnt, std::uint32_t& size, std::uint32_t& h) {
         if (BinaryTree::is_leaf(c)) {
             box = refs.box[BinaryTree::ref_of(c)];
@@ -225,7 +228,7 @@ Bvh<NodeT, Prim> emit_bvh(const BinaryTree& tree, const References<T>& refs, std
             cnt = 1; size = 1; h = 0;
         } else {
             const Info& f = info[c];
-            box = f.box; cost = f.cost; cnt = f.refs; size = f.size; h = f.height;
+            box = f.box(); cost = f.cost; cnt = f.refs; size = f.size; h = f.height;
         }
     };
     auto compute = [&](std::uint32_t p) {
@@ -235,9 +238,11 @@ Bvh<NodeT, Prim> emit_bvh(const BinaryTree& tree, const References<T>& refs, std
         child_facts(tree.left[p], bl, cl, nl, sl, hl);
         child_facts(tree.right[p], br, cr, nr, sr, hr);
         Info& f = info[p];
-        f.box = merge(bl, br);
+        const AABB<T> box = merge(bl, br);
+        f.min = box.min;
+        f.max = box.max;
         f.refs = nl + nr;
-        const float area = float(f.box.half_area());
+        const float area = float(box.half_area());
         const float split_cost = ct * area + cl + cr;
         const float leaf_cost = ci * area * float(f.refs);
         f.collapsed = f.refs <= max_leaf && leaf_cost <= split_cost;
@@ -271,7 +276,7 @@ Bvh<NodeT, Prim> emit_bvh(const BinaryTree& tree, const References<T>& refs, std
             continue;
         }
         NodeT& node = bvh.nodes[it.pos];
-        node.set_bounds(info[it.id].box);
+        node.set_bounds(info[it.id].box());
         node.index = it.free;
         node.count = 0;
         deepest = std::max(deepest, it.depth);

@@ -17,7 +17,6 @@
 #include "collapse.hpp"
 #include "executor.hpp"
 #include "morton.hpp"
-#include "radix_sort.hpp"
 #include "references.hpp"
 
 namespace dynbvh::lbvh {
@@ -27,28 +26,6 @@ struct Config {
     int morton_bits = 30;      ///< 30 (uint32 keys, faster sort) or 63 (uint64 keys, finer grid for large scenes)
     LeafConfig leaves{};       ///< SAH leaf collapse
 };
-
-/// Reorders `refs` (boxes and triangle ids together) by the Morton code of their centres and
-/// returns the sorted codes. Sorting the references themselves, not an index array, keeps every
-/// later pass sequential in memory. Shared with PLOC. O(n), parallel.
-template <class Key, class T, class Exec>
-std::vector<Key> sort_by_morton(References<T>& refs, const Exec& ex) {
-    const std::size_t n = refs.size();
-    std::vector<Key> keys(n);
-    std::vector<std::uint32_t> order(n);
-    morton::codes<Key>(refs, std::span<Key>(keys), ex);
-    ex.for_each(0, n, [&](std::size_t i) { order[i] = static_cast<std::uint32_t>(i); });
-    radix_sort(keys, order, ex, morton::code_bits<Key>);
-    std::vector<AABB<T>> box(n);
-    std::vector<std::uint32_t> prim(n);
-    ex.for_each(0, n, [&](std::size_t i) {
-        box[i] = refs.box[order[i]];
-        prim[i] = refs.prim[order[i]];
-    });
-    refs.box.swap(box);
-    refs.prim.swap(prim);
-    return keys;
-}
 
 namespace detail {
 
@@ -100,10 +77,10 @@ BinaryTree radix_tree(std::span<const Key> keys, const Exec& ex) {
 template <class T, class Exec>
 BinaryTree build_tree(References<T>& refs, const Config& cfg, const Exec& ex) {
     if (cfg.morton_bits > 30) {
-        const auto keys = sort_by_morton<std::uint64_t>(refs, ex);
+        const auto keys = morton::sort_references<std::uint64_t>(refs, ex);
         return detail::radix_tree<std::uint64_t>(std::span<const std::uint64_t>(keys), ex);
     }
-    const auto keys = sort_by_morton<std::uint32_t>(refs, ex);
+    const auto keys = morton::sort_references<std::uint32_t>(refs, ex);
     return detail::radix_tree<std::uint32_t>(std::span<const std::uint32_t>(keys), ex);
 }
 

@@ -2,8 +2,8 @@
 /// Morton (Z-order) codes of reference centres, shared by LBVH, PLOC and presplitting.
 /// Centres are quantised on a 2^k grid per axis over the centroid bounds (k = 10 for
 /// 30-bit codes in uint32_t, k = 21 for 63-bit codes in uint64_t) and their bits interleaved
-/// (x highest). An axis of zero extent (a flat or point-like scene) quantises to 0 instead of
-/// dividing by zero, and non-finite inputs clamp into the grid. Lauterbach et al. 2009.
+/// (x highest); `sort_references` then orders the references along that curve. An axis of
+/// zero extent (a flat or point-like scene) quantises to 0 instead of dividing by zero, and non-finite inputs clamp into the grid. Lauterbach et al. 2009.
 #pragma once
 
 #include <cmath>
@@ -12,7 +12,9 @@
 #include <type_traits>
 
 #include "aabb.hpp"
+#include "radix_sort.hpp"
 #include "references.hpp"
+#include "scratch.hpp"
 
 namespace dynbvh::morton {
 
@@ -93,6 +95,28 @@ void codes(const References<T>& refs, std::span<Key> out, const Exec& ex) {
     static_assert(std::is_same_v<Key, std::uint32_t> || std::is_same_v<Key, std::uint64_t>);
     const Quantizer<T> q(refs.centroid_bounds, grid_bits<Key>);
     ex.for_each(0, refs.size(), [&](std::size_t i) { out[i] = encode<Key>(q, refs.box[i].center()); });
+}
+
+/// Reorders `refs` (boxes and triangle ids together) by the Morton code of their centres and
+/// returns the sorted codes. Sorting the references themselves, not an index array, keeps every
+/// later pass sequential in memory. Shared with PLOC. O(n), parallel.
+template <class Key, class T, class Exec>
+scratch_vector<Key> sort_references(References<T>& refs, const Exec& ex) {
+    const std::size_t n = refs.size();
+    scratch_vector<Key> keys(n);
+    scratch_vector<std::uint32_t> order(n);
+    morton::codes<Key>(refs, std::span<Key>(keys), ex);
+    ex.for_each(0, n, [&](std::size_t i) { order[i] = static_cast<std::uint32_t>(i); });
+    radix_sort(keys, order, ex, morton::code_bits<Key>);
+    scratch_vector<AABB<T>> box(n);
+    scratch_vector<std::uint32_t> prim(n);
+    ex.for_each(0, n, [&](std::size_t i) {
+        box[i] = refs.box[order[i]];
+        prim[i] = refs.prim[order[i]];
+    });
+    refs.box.swap(box);
+    refs.prim.swap(prim);
+    return keys;
 }
 
 } // namespace dynbvh::morton

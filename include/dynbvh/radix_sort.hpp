@@ -1,6 +1,6 @@
 /// @file radix_sort.hpp
 /// Parallel stable LSD radix sort of unsigned keys with a payload, shared by every
-/// Morton-ordered builder. 8-bit digits; each pass builds per-task histograms, scans
+/// Morton-ordered builder. Up to 11-bit digits; each pass builds per-task histograms, scans
 /// them (digit-major) and scatters; a pass whose digit is the same for every key is skipped.
 /// O(n * passes) work, O(n) extra memory.
 #pragma once
@@ -12,27 +12,31 @@
 #include <vector>
 
 #include "executor.hpp"
+#include "scratch.hpp"
 
 namespace dynbvh {
 
 /// Sorts `keys` ascending and applies the same permutation to `values` (stable).
-/// Only the low `key_bits` bits are examined (higher bits must be zero, e.g. 30 for 30-bit Morton codes).
-template <class Key, class Value, class Exec>
-void radix_sort(std::vector<Key>& keys, std::vector<Value>& values, const Exec& ex,
+/// Only the low `key_bits` bits are examined (higher bits must be zero, e.g. 30 for 30-bit
+/// Morton codes): ceil(key_bits / 11) passes of at most 11-bit digits (30 bits: 3 passes of 10).
+template <class Key, class Value, class KeyAlloc, class ValueAlloc, class Exec>
+void radix_sort(std::vector<Key, KeyAlloc>& keys, std::vector<Value, ValueAlloc>& values, const Exec& ex,
                 int key_bits = int(sizeof(Key) * 8)) {
     static_assert(std::is_unsigned_v<Key>);
-    constexpr int digit_bits = 8;
-    constexpr std::size_t buckets = std::size_t(1) << digit_bits;
     const std::size_t n = keys.size();
-    if (n < 2) return;
+    if (n < 2 || key_bits <= 0) return;
+    const int passes = (key_bits + 10) / 11;
+    const int digit_bits = (key_bits + passes - 1) / passes;
+    const std::size_t buckets = std::size_t(1) << digit_bits;
+    const Key mask = Key(buckets - 1);
 
     std::size_t tasks = std::min<std::size_t>(ex.concurrency(), std::max<std::size_t>(1, n / 65536));
     if (tasks == 0) tasks = 1;
     const std::size_t chunk = (n + tasks - 1) / tasks;
 
-    std::vector<Key> keys_tmp(n);
-    std::vector<Value> values_tmp(n);
-    std::vector<std::size_t> hist(tasks * buckets);
+    std::vector<Key, KeyAlloc> keys_tmp(n);
+    std::vector<Value, ValueAlloc> values_tmp(n);
+    scratch_vector<std::size_t> hist(tasks * buckets);
     Key* src_k = keys.data();
     Key* dst_k = keys_tmp.data();
     Value* src_v = values.data();
@@ -43,7 +47,7 @@ void radix_sort(std::vector<Key>& keys, std::vector<Value>& values, const Exec& 
             std::size_t* h = hist.data() + t * buckets;
             std::fill(h, h + buckets, std::size_t(0));
             const std::size_t lo = std::min(n, t * chunk), hi = std::min(n, lo + chunk);
-            for (std::size_t i = lo; i < hi; ++i) ++h[(src_k[i] >> shift) & (buckets - 1)];
+            for (std::size_t i = lo; i < hi; ++i) ++h[(src_k[i] >> shift) & mask];
         });
         // Skip the pass when one digit value holds every key.
         bool trivial = false;
@@ -66,7 +70,7 @@ void radix_sort(std::vector<Key>& keys, std::vector<Value>& values, const Exec& 
             std::size_t* h = hist.data() + t * buckets;
             const std::size_t lo = std::min(n, t * chunk), hi = std::min(n, lo + chunk);
             for (std::size_t i = lo; i < hi; ++i) {
-                const std::size_t pos = h[(src_k[i] >> shift) & (buckets - 1)]++;
+                const std::size_t pos = h[(src_k[i] >> shift) & mask]++;
                 dst_k[pos] = src_k[i];
                 dst_v[pos] = src_v[i];
             }

@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "executor.hpp"
+#include "scratch.hpp"
 #include "triangle.hpp"
 
 namespace dynbvh {
@@ -17,8 +18,8 @@ namespace dynbvh {
 /// Build references: parallel arrays, one entry per reference.
 template <class T>
 struct References {
-    std::vector<AABB<T>> box;              ///< tight box of the reference (triangle or fragment)
-    std::vector<std::uint32_t> prim;       ///< index of the user's triangle
+    scratch_vector<AABB<T>> box;           ///< tight box of the reference (triangle or fragment)
+    scratch_vector<std::uint32_t> prim;    ///< index of the user's triangle
     AABB<T> bounds;                        ///< union of all boxes
     AABB<T> centroid_bounds;               ///< union of all box centres
     std::size_t primitive_count = 0;       ///< triangles in the input
