@@ -1,0 +1,181 @@
+// OBJ reader on tinyobjloader: the real dragon against an independent parse, MTL mapping,
+// per-face materials, fan triangulation, and malformed files.
+#include <doctest/doctest.h>
+
+#include <dynbvh/io/obj.hpp>
+
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <random>
+#include <sstream>
+
+using namespace dynbvh;
+using namespace dynbvh::io;
+
+namespace {
+
+struct TempDir {
+    std::filesystem::path path;
+    TempDir() : path(std::filesystem::temp_directory_path() / ("dynbvh_test_obj_" + std::to_string(std::random_device{}()))) {
+        std::filesystem::create_directories(path);
+    }
+    ~TempDir() { std::filesystem::remove_all(path); }
+    std::string write(const std::string& name, const std::string& text) const {
+        const auto p = path / name;
+        std::ofstream(p, std::ios::binary) << text;
+        return p.string();
+    }
+};
+
+/// Reads `path`, which must fail with a LoadError naming it; returns the error.
+LoadError obj_error(const std::string& path) {
+    try {
+        (void)read_obj(path);
+    } catch (const LoadError& e) {
+        CHECK(e.file() == path);
+        CHECK(std::string(e.what()).find(path) != std::string::npos);
+        return e;
+    }
+    FAIL("no LoadError for " << path);
+    return LoadError("", "", "");
+}
+bool mentions(const LoadError& e, const std::string& what) { return std::string(e.what()).find(what) != std::string::npos; }
+
+} // namespace
+
+TEST_CASE("dragon_100k.obj: counts, bounds and faces match an independent parse") {
+    const std::string path = DYNBVH_DATA_DIR "/meshes/dragon_100k.obj";
+    if (!std::filesystem::exists(path)) {
+        MESSAGE("skipped: " << path << " is absent");
+        return;
+    }
+    std::string warnings;
+    const Mesh m = read_obj(path, &warnings);
+    CHECK(m.faces.size() == 100000);
+    CHECK(m.vertices.size() == 50000);
+    CHECK(warnings.find("dragon.mtl") != std::string::npos);  // its mtllib is not shipped: a warning, not an error
+    CHECK(m.materials.empty());
+    CHECK(m.face_material.empty());
+
+    // independent: sscanf over `v` and `f` lines (the file uses plain "f a b c")
+    std::ifstream in(path);
+    std::string line;
+    AABBd box;
+    std::vector<std::array<std::uint32_t, 3>> faces;
+    std::size_t verts = 0;
+    while (std::getline(in, line)) {
+        double x, y, z;
+        unsigned a, b, c;
+        if (std::sscanf(line.c_str(), "v %lf %lf %lf", &x, &y, &z) == 3) { box.extend(Vec3d{x, y, z}); ++verts; }
+        else if (std::sscanf(line.c_str(), "f %u %u %u", &a, &b, &c) == 3) faces.push_back({a - 1, b - 1, c - 1});
+    }
+    CHECK(verts == m.vertices.size());
+    CHECK(m.faces == faces);
+    const AABBf b = m.bounds();
+    // tinyobjloader's own number parser may differ from strtod in the last float bit
+    for (int k = 0; k < 3; ++k) {
+        CHECK(b.min[static_cast<std::size_t>(k)] == doctest::Approx(box.min[static_cast<std::size_t>(k)]).epsilon(1e-6));
+        CHECK(b.max[static_cast<std::size_t>(k)] == doctest::Approx(box.max[static_cast<std::size_t>(k)]).epsilon(1e-6));
+    }
+}
+
+TEST_CASE("MTL materials map to io::Material, one id per triangle") {
+    TempDir dir;
+    dir.write("m.mtl",
+              "newmtl glass\nKa 0.1 0.2 0.3\nKd 0.4 0.5 0.6\nKs 0.7 0.8 0.9\nNs 96\nNi 1.5\nd 0.25\nillum 4\n"
+              "newmtl red\nKd 1 0 0\nTr 0.75\nillum 2\nTf 1 1 1\n"  // Tr only: d = 1 - Tr; Tf ignored for illum 2
+              "newmtl water\nKd 0 0 1\nNi 1.33\nTf 0.5 0.25 0.75\nillum 7\n"
+              "newmtl opaque\nKd 0.5 0.5 0.5\nTf 1 1 1\nillum 2\n");
+    const std::string obj = dir.write("scene.obj",
+                                      "mtllib m.mtl\n"
+                                      "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 0 0 1\n"
+                                      "f 1 2 3\n"          // before any usemtl: default material
+                                      "usemtl red\nf 1 2 3 4\n"  // quad: two triangles, both red
+                                      "usemtl glass\nf 2 3 5\n"
+                                      "usemtl nosuch\nf 3 4 5\n"  // unknown name: default material
+                                      "usemtl water\nf -1 -2 -3\n");
+    std::string warnings;
+    const Mesh m = read_obj(obj, &warnings);
+    REQUIRE(m.faces.size() == 6);
+    REQUIRE(m.materials.size() == 5);  // 4 from the MTL + "default"
+    CHECK(m.materials[4].name == "default");
+    const std::vector<std::uint32_t> ids = {4, 1, 1, 0, 4, 2};
+    CHECK(m.face_material == ids);
+    const std::vector<std::array<std::uint32_t, 3>> faces = {{0, 1, 2}, {0, 1, 2}, {0, 2, 3}, {1, 2, 4}, {2, 3, 4}, {4, 3, 2}};
+    CHECK(m.faces == faces);
+
+    const Material& glass = m.materials[0];
+    CHECK(glass.name == "glass");
+    CHECK(glass.ambient == Vec3f{0.1f, 0.2f, 0.3f});
+    CHECK(glass.diffuse == Vec3f{0.4f, 0.5f, 0.6f});
+    CHECK(glass.specular == Vec3f{0.7f, 0.8f, 0.9f});
+    CHECK(glass.shininess == 96.0f);
+    CHECK(glass.ior == 1.5f);
+    CHECK(glass.opacity == 0.25f);
+    CHECK(glass.transmission == 0.75f);
+    CHECK(glass.illum == 4);
+    CHECK(glass.reflects());
+    CHECK(glass.refracts());
+    const Material& red = m.materials[1];
+    CHECK(red.opacity == doctest::Approx(0.25));
+    CHECK(red.transmission == doctest::Approx(0.75));
+    const Material& water = m.materials[2];
+    CHECK(water.opacity == 1.0f);
+    CHECK(water.transmission == doctest::Approx(0.5));
+    CHECK(water.ior == doctest::Approx(1.33));
+    CHECK(water.illum == 7);
+    const Material& opaque = m.materials[3];
+    CHECK(opaque.transmission == 0.0f);
+    CHECK(!opaque.refracts());
+    CHECK(!opaque.reflects());
+}
+
+TEST_CASE("an OBJ without usemtl has no materials; polygons are fan-triangulated") {
+    TempDir dir;
+    const Mesh m = read_obj(dir.write("p.obj", "# pentagon\no thing\nv 0 0 0\nv 1 0 0\nv 2 1 0\nv 1 2 0\nv 0 1 0\n"
+                                              "vn 0 0 1\nvt 0 0\nf 1/1/1 2/1/1 3/1/1 4/1/1 5/1/1\nl 1 2\n"));
+    const std::vector<std::array<std::uint32_t, 3>> faces = {{0, 1, 2}, {0, 2, 3}, {0, 3, 4}};
+    CHECK(m.faces == faces);
+    CHECK(m.materials.empty());
+    CHECK(m.face_material.empty());
+    CHECK(m.vertices[2] == Vec3f{2, 1, 0});
+}
+
+TEST_CASE("malformed OBJ: LoadError naming the file (and the line where it can be known)") {
+    TempDir dir;
+    SUBCASE("missing file") { CHECK(mentions(obj_error((dir.path / "none.obj").string()), "no such file")); }
+    SUBCASE("index out of range") {
+        const LoadError e = obj_error(dir.write("a.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n\nf 1 2 4\n"));
+        CHECK(e.where() == "line 6");
+        CHECK(mentions(e, "out of range"));
+        CHECK(obj_error(dir.write("b.obj", "v 0 0 0\nv 1 0 0\nf 1 2 -3\nv 0 1 0\n")).where() == "line 3");
+    }
+    SUBCASE("zero index: tinyobjloader's error is surfaced") {
+        const LoadError e = obj_error(dir.write("z.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 0 1 2\n"));
+        CHECK(mentions(e, "tinyobjloader"));
+        CHECK(mentions(e, "line 4"));
+    }
+    SUBCASE("NaN, infinity, overflow, missing coordinates") {
+        CHECK(obj_error(dir.write("n.obj", "v 0 0 0\nv nan 0 0\nv 0 1 0\nf 1 2 3\n")).where() == "line 2");
+        CHECK(obj_error(dir.write("i.obj", "v 0 0 0\nv 1 0 0\n  v 0 -inf 0\nf 1 2 3\n")).where() == "line 3");
+        CHECK(obj_error(dir.write("o.obj", "v 0 0 0\nv 1 0 0\nv 0 1e999 0\nf 1 2 3\n")).where() == "line 3");
+        CHECK(obj_error(dir.write("m.obj", "v 0 0 0\nv 1 0\nv 0 1 0\nf 1 2 3\n")).where() == "line 2");
+        CHECK(obj_error(dir.write("c.obj", "v 0 0 0\nv 1 0 0\nv 0 1 # 0\nf 1 2 3\n")).where() == "line 3");
+    }
+}
+
+TEST_CASE("read_obj from memory") {
+    const std::string text = "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n";
+    std::string warnings;
+    const Mesh m = read_obj(std::span<const char>(text.data(), text.size()), "mem.obj", "", &warnings);
+    CHECK(m.faces.size() == 1);
+    const std::string bad = "v 0 0 0\nf 1 2 3\n";
+    try {
+        (void)read_obj(std::span<const char>(bad.data(), bad.size()), "mem.obj", "");
+        FAIL("no error");
+    } catch (const LoadError& e) {
+        CHECK(e.file() == "mem.obj");
+        CHECK(e.where() == "line 2");
+    }
+}
