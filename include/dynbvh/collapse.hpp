@@ -71,6 +71,7 @@ struct Emitter {
     scratch_vector<RawNodeInfo<T>>& info;
     std::vector<NodeT>& nodes;
     std::vector<typename NodeT::index_type>& prim_ids;
+    std::atomic<bool> deduplicated{false};   ///< some leaf held two fragments of one triangle
 
     struct Item {
         std::uint32_t id;    ///< raw child id (inner node or leaf-flagged reference)
@@ -103,19 +104,25 @@ struct Emitter {
     void write_leaf(const Item& it, std::vector<std::uint32_t>& stack) {
         auto* out = prim_ids.data() + it.ref;
         std::uint32_t n = 0;
-        stack.clear();
-        stack.push_back(it.id);
-        while (!stack.empty()) {
-            const std::uint32_t c = stack.back();
-            stack.pop_back();
-            if (BinaryTree::is_leaf(c)) out[n++] = static_cast<typename NodeT::index_type>(refs.prim[BinaryTree::ref_of(c)]);
-            else { stack.push_back(tree.right[c]); stack.push_back(tree.left[c]); }
+        if (BinaryTree::is_leaf(it.id)) {
+            out[n++] = static_cast<typename NodeT::index_type>(refs.prim[BinaryTree::ref_of(it.id)]);
+        } else {
+            stack.clear();
+            stack.push_back(it.id);
+            while (!stack.empty()) {
+                const std::uint32_t c = stack.back();
+                stack.pop_back();
+                for (std::uint32_t child : {tree.left[c], tree.right[c]}) {
+                    if (BinaryTree::is_leaf(child)) out[n++] = static_cast<typename NodeT::index_type>(refs.prim[BinaryTree::ref_of(child)]);
+                    else stack.push_back(child);
+                }
+            }
         }
         std::uint32_t count = n;
-        if (n > 1) {
+        if (n > 1 && refs.repeats) {
             std::sort(out, out + n);
             count = static_cast<std::uint32_t>(std::unique(out, out + n) - out);
-            for (std::uint32_t k = count; k < n; ++k) out[k] = out[count - 1];   // unused slots stay valid ids
+            if (count < n) deduplicated.store(true, std::memory_order_relaxed);
         }
         NodeT& node = nodes[it.pos];
         node.set_bounds(box_of(it.id));
@@ -188,6 +195,24 @@ struct Emitter {
         return deepest;
     }
 };
+
+/// Closes the gaps that deduplicated leaves left in prim_ids (presplit trees only). O(n log n), serial.
+template <class NodeT, class Prim>
+void compact_references(Bvh<NodeT, Prim>& bvh) {
+    std::vector<std::pair<typename NodeT::index_type, std::size_t>> leaves;   // (first slot, node)
+    for (std::size_t i = 0; i < bvh.nodes.size(); ++i)
+        if (bvh.nodes[i].is_leaf()) leaves.push_back({bvh.nodes[i].index, i});
+    std::sort(leaves.begin(), leaves.end());
+    std::size_t out = 0;
+    for (const auto& [first, i] : leaves) {
+        NodeT& node = bvh.nodes[i];
+        std::copy(bvh.prim_ids.begin() + std::ptrdiff_t(first), bvh.prim_ids.begin() + std::ptrdiff_t(first + node.count),
+                  bvh.prim_ids.begin() + std::ptrdiff_t(out));
+        node.index = static_cast<typename NodeT::index_type>(out);
+        out += node.count;
+    }
+    bvh.prim_ids.resize(out);
+}
 
 } // namespace detail
 
@@ -288,10 +313,11 @@ Bvh<NodeT, Prim> emit_bvh(const BinaryTree& tree, const References<T>& refs, std
     ex.for_tasks(top.size(), [&](std::size_t k) { depths[k] = em.emit_subtree(top[k]); });
     for (std::uint32_t d : depths) deepest = std::max(deepest, d);
     bvh.depth = deepest;
+    if (em.deduplicated.load()) detail::compact_references(bvh);
 
     if constexpr (Bvh<NodeT, Prim>::precomputed) {
-        bvh.leaf_triangles.resize(n_refs);
-        ex.for_each(0, n_refs, [&](std::size_t s) { bvh.leaf_triangles[s] = tris[bvh.prim_ids[s]]; });
+        bvh.leaf_triangles.resize(bvh.prim_ids.size());
+        ex.for_each(0, bvh.prim_ids.size(), [&](std::size_t s) { bvh.leaf_triangles[s] = tris[bvh.prim_ids[s]]; });
     } else {
         (void)tris;
     }

@@ -24,6 +24,7 @@ struct References {
     AABB<T> centroid_bounds;               ///< union of all box centres
     std::size_t primitive_count = 0;       ///< triangles in the input
     std::size_t excluded = 0;              ///< input triangles skipped (non-finite vertices)
+    bool repeats = false;                  ///< a triangle has several references (presplit fragments)
 
     std::size_t size() const noexcept { return box.size(); }
 };
@@ -55,34 +56,49 @@ void update_reference_bounds(References<T>& refs, const Exec& ex) {
     refs.centroid_bounds = r.centroid;
 }
 
-/// One reference per finite triangle, in input order. O(n), parallel.
+/// One reference per finite triangle, in input order. O(n), parallel; one pass over the
+/// triangles when all are finite (the common case), a second compacting pass otherwise.
 template <class T, class Exec>
 References<T> make_references(std::span<const Triangle<T>> tris, const Exec& ex) {
+    using BP = detail::BoundsPair<T>;
+    struct Acc {
+        BP bounds;
+        std::size_t bad = 0;
+    };
     References<T> refs;
     refs.primitive_count = tris.size();
     const std::size_t n = tris.size();
-    // Fast path: all finite (the common case) avoids the compaction pass.
-    const std::size_t bad = ex.reduce(
-        std::size_t(0), n, std::size_t(0), [&](std::size_t i) { return tris[i].is_finite() ? std::size_t(0) : std::size_t(1); },
-        [](std::size_t a, std::size_t b) { return a + b; });
-    refs.excluded = bad;
-    if (bad == 0) {
-        refs.box.resize(n);
-        refs.prim.resize(n);
-        ex.for_each(0, n, [&](std::size_t i) {
-            refs.box[i] = tris[i].bounds();
+    refs.box.resize(n);
+    refs.prim.resize(n);
+    const Acc acc = ex.reduce(
+        std::size_t(0), n, Acc{},
+        [&](std::size_t i) {
+            Acc a;
+            const AABB<T> b = tris[i].bounds();
+            refs.box[i] = b;
             refs.prim[i] = static_cast<std::uint32_t>(i);
-        });
-    } else {
-        refs.box.reserve(n - bad);
-        refs.prim.reserve(n - bad);
+            if (tris[i].is_finite()) {
+                a.bounds.box = b;
+                a.bounds.centroid.extend(b.center());
+            } else {
+                a.bad = 1;
+            }
+            return a;
+        },
+        [](const Acc& x, const Acc& y) { return Acc{BP::combine(x.bounds, y.bounds), x.bad + y.bad}; });
+    refs.excluded = acc.bad;
+    refs.bounds = acc.bounds.box;
+    refs.centroid_bounds = acc.bounds.centroid;
+    if (acc.bad != 0) {
+        std::size_t k = 0;
         for (std::size_t i = 0; i < n; ++i)
             if (tris[i].is_finite()) {
-                refs.box.push_back(tris[i].bounds());
-                refs.prim.push_back(static_cast<std::uint32_t>(i));
+                refs.box[k] = refs.box[i];
+                refs.prim[k++] = static_cast<std::uint32_t>(i);
             }
+        refs.box.resize(k);
+        refs.prim.resize(k);
     }
-    update_reference_bounds(refs, ex);
     return refs;
 }
 
