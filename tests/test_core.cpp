@@ -157,6 +157,7 @@ TEST_CASE("emit: fragments of one triangle in one leaf are tested once") {
     refs.box = {AABBf{{0, 0, 0}, {0.5f, 1, 0}}, AABBf{{0.5f, 0, 0}, {1, 0.5f, 0}}, tris[1].bounds()};
     refs.prim = {0, 0, 1};
     refs.primitive_count = 2;
+    refs.repeats = true;
     BinaryTree t;
     t.left = {1, BinaryTree::leaf(0)};
     t.right = {BinaryTree::leaf(2), BinaryTree::leaf(1)};
