@@ -6,6 +6,7 @@
 
 #include <cmath>
 #include <cstdint>
+#include <cstdlib>
 #include <filesystem>
 #include <numbers>
 #include <string>
@@ -14,6 +15,7 @@
 
 #include <dynbvh/bvh.hpp>
 #include <dynbvh/executor.hpp>
+#include <dynbvh/validate.hpp>
 
 namespace dynbvh::test {
 
@@ -97,9 +99,6 @@ inline auto executors() {
 #endif
                       >{};
 }
-template <class F> void for_each_executor(F&& f) {
-    std::apply([&](auto... ex) { (f(ex), ...); }, executors());
-}
 template <class E> const char* executor_name() {
     if constexpr (std::is_same_v<E, exec::serial>) return "serial";
 #if defined(_OPENMP)
@@ -107,69 +106,24 @@ template <class E> const char* executor_name() {
 #endif
     else return "tbb";
 }
+/// Whether executor E is selected: all are, unless the environment variable DYNBVH_TEST_EXECUTORS
+/// lists names, e.g. DYNBVH_TEST_EXECUTORS=serial,tbb (tools/tsan.sh uses it).
+template <class E> bool executor_selected() {
+    const char* list = std::getenv("DYNBVH_TEST_EXECUTORS");
+    if (!list || !*list) return true;
+    const std::string s = "," + std::string(list) + ",";
+    return s.find("," + std::string(executor_name<E>()) + ",") != std::string::npos;
+}
+/// Calls f(executor) for every executor this build has (and DYNBVH_TEST_EXECUTORS selects).
+template <class F> void for_each_executor(F&& f) {
+    std::apply([&](auto... ex) { ((executor_selected<decltype(ex)>() ? (void)f(ex) : void()), ...); }, executors());
+}
 
-/// Independent structure check, written without using any library traversal code:
-/// every node reached once from the root, children adjacent and in range, parents contain
-/// children, leaves contain their triangles' boxes (or, for fragments, overlap them), each
-/// finite triangle referenced (exactly once when `single` is true), depth equals bvh.depth
-/// and stays within max_depth. Returns an empty string when all holds.
+/// validate() as a string: empty when the tree is valid, else the reasons (for CHECK(... == "")).
 template <class B>
 std::string structure_problems(const B& bvh, std::span<const Trianglef> tris, bool single = true) {
-    std::string why;
-    auto fail = [&](const std::string& s) { if (why.size() < 2000) why += s + "\n"; };
-    if (bvh.nodes.empty()) {
-        for (const auto& t : tris)
-            if (t.is_finite()) { fail("empty tree but a finite triangle exists"); break; }
-        return why;
-    }
-    std::vector<int> visits(bvh.nodes.size(), 0);
-    std::vector<int> refs(tris.size(), 0);
-    std::vector<std::pair<std::size_t, std::uint32_t>> stack{{0, 0}};
-    std::uint32_t deepest = 0;
-    while (!stack.empty()) {
-        const auto [i, d] = stack.back();
-        stack.pop_back();
-        if (++visits[i] > 1) { fail("node " + std::to_string(i) + " reached twice"); continue; }
-        deepest = std::max(deepest, d);
-        const auto& n = bvh.nodes[i];
-        if (n.is_leaf()) {
-            if (std::size_t(n.index) + n.count > bvh.prim_ids.size()) { fail("leaf range out of bounds"); continue; }
-            std::vector<std::uint32_t> in_leaf;
-            for (std::size_t s = n.index; s < std::size_t(n.index) + n.count; ++s) {
-                const auto p = bvh.prim_ids[s];
-                if (p >= tris.size()) { fail("prim id out of range"); continue; }
-                in_leaf.push_back(p);
-                ++refs[p];
-                const auto tb = tris[p].bounds();
-                const auto ov = intersection(n.bounds(), tb);
-                if (single ? !n.bounds().contains(tb) : ov.is_empty())
-                    fail("leaf " + std::to_string(i) + " does not hold triangle " + std::to_string(p));
-                if constexpr (B::precomputed)
-                    if (!(bvh.leaf_triangles[s].p0 == tris[p].p0 && bvh.leaf_triangles[s].p2 == tris[p].p2))
-                        fail("precomputed triangle differs");
-            }
-            std::sort(in_leaf.begin(), in_leaf.end());
-            if (std::adjacent_find(in_leaf.begin(), in_leaf.end()) != in_leaf.end()) fail("a triangle twice in one leaf");
-        } else {
-            if (std::size_t(n.index) + 1 >= bvh.nodes.size() || n.index == 0) { fail("child index out of range"); continue; }
-            for (auto c : {n.left(), n.right()}) {
-                if (!n.bounds().contains(bvh.nodes[c].bounds())) fail("node " + std::to_string(i) + " does not contain child");
-                stack.push_back({c, d + 1});
-            }
-        }
-    }
-    for (std::size_t i = 0; i < visits.size(); ++i)
-        if (visits[i] != 1) { fail("node " + std::to_string(i) + " visited " + std::to_string(visits[i]) + " times"); break; }
-    std::size_t excluded = 0;
-    for (std::size_t p = 0; p < tris.size(); ++p) {
-        if (!tris[p].is_finite()) { ++excluded; if (refs[p]) fail("non-finite triangle referenced"); continue; }
-        if (refs[p] == 0) fail("triangle " + std::to_string(p) + " unreachable");
-        if (single && refs[p] > 1) fail("triangle " + std::to_string(p) + " referenced " + std::to_string(refs[p]) + " times");
-    }
-    if (excluded != bvh.excluded) fail("excluded count " + std::to_string(bvh.excluded) + " != " + std::to_string(excluded));
-    if (deepest != bvh.depth) fail("depth " + std::to_string(bvh.depth) + " != measured " + std::to_string(deepest));
-    if (bvh.depth > max_depth) fail("depth beyond max_depth");
-    return why;
+    const auto report = validate(bvh, tris, {.expect_single_reference = single});
+    return report.ok() ? std::string() : report.summary();
 }
 
 } // namespace dynbvh::test

@@ -1,0 +1,114 @@
+// Build time of every dynbvh builder next to Embree 3 (LOW, MEDIUM) on the same triangles with the
+// same thread count, in one run, so every figure reads as a ratio. Scenes: a ~92k-triangle frame of
+// the built-in cloth-ball and a ~1.6M-triangle frame of large-breaking.
+//
+//   dynbvh-bench-build [--threads=N] [google benchmark flags]   (default: 2 threads, as in CI)
+//
+// Counters: tris (triangles), Mtris/s, SAH (Ct = 3, Ci = 2, dynbvh trees only).
+#include <benchmark/benchmark.h>
+
+#include <cstdlib>
+#include <cstring>
+#include <map>
+#include <memory>
+#include <string>
+
+#include <dynbvh/binned_sah.hpp>
+#include <dynbvh/kbvh.hpp>
+#include <dynbvh/lbvh.hpp>
+#include <dynbvh/ploc.hpp>
+#include <dynbvh/sah.hpp>
+#include <dynbvh/scenes/builtin.hpp>
+
+#include "embree_bvh.hpp"
+
+namespace {
+
+using namespace dynbvh;
+
+int g_threads = 2;
+
+const std::vector<Trianglef>& scene_triangles(const std::string& name) {
+    static std::map<std::string, std::vector<Trianglef>> cache;
+    auto it = cache.find(name);
+    if (it != cache.end()) return it->second;
+    auto scene = scenes::make_builtin(name);
+    io::Frame f;
+    scene->frame(scene->frame_count() / 2, f);   // a mid-animation frame: the cloth draped, the pieces flying
+    return cache.emplace(name, std::move(f.triangles)).first->second;
+}
+
+const char* scene_of(std::int64_t arg) { return arg == 0 ? "cloth-ball" : "large-breaking"; }
+
+template <class Build>
+void run_dynbvh(benchmark::State& state, Build&& build) {
+    const auto& tris = scene_triangles(scene_of(state.range(0)));
+    exec::default_executor ex{};
+#if defined(_OPENMP)
+    ex.threads = g_threads;
+#endif
+    auto bvh = build(tris, ex);   // warm-up: faults in the scratch memory reused by every later frame
+    for (auto _ : state) {
+        bvh = build(tris, ex);
+        benchmark::DoNotOptimize(bvh.nodes.data());
+    }
+    state.counters["tris"] = double(tris.size());
+    state.counters["Mtris/s"] = benchmark::Counter(double(tris.size()) * double(state.iterations()) * 1e-6,
+                                                   benchmark::Counter::kIsRate);
+    state.counters["SAH"] = sah_cost(bvh, {.ct = 3, .ci = 2});
+}
+
+void BM_lbvh(benchmark::State& s) { run_dynbvh(s, [](const auto& t, const auto& ex) { return lbvh::build(t, {}, ex); }); }
+void BM_lbvh63(benchmark::State& s) { run_dynbvh(s, [](const auto& t, const auto& ex) { return lbvh::build(t, {.morton_bits = 63}, ex); }); }
+void BM_ploc_r5(benchmark::State& s) { run_dynbvh(s, [](const auto& t, const auto& ex) { return ploc::build(t, {.radius = 5}, ex); }); }
+void BM_ploc_r32(benchmark::State& s) { run_dynbvh(s, [](const auto& t, const auto& ex) { return ploc::build(t, {.radius = 32}, ex); }); }
+void BM_kbvh(benchmark::State& s) { run_dynbvh(s, [](const auto& t, const auto& ex) { return kbvh::build(t, {}, ex); }); }
+void BM_binned_sah(benchmark::State& s) { run_dynbvh(s, [](const auto& t, const auto& ex) { return binned_sah::build(t, {}, ex); }); }
+
+void run_embree(benchmark::State& state, bench::EmbreeMode mode) {
+    const auto& tris = scene_triangles(scene_of(state.range(0)));
+    bench::EmbreeBvh e(g_threads, mode);
+    e.update(tris);
+    e.commit();   // warm-up, as for dynbvh
+    for (auto _ : state) {
+        state.PauseTiming();
+        e.update(tris);   // a new frame's vertices: not part of the build
+        state.ResumeTiming();
+        e.commit();
+    }
+    state.counters["tris"] = double(tris.size());
+    state.counters["Mtris/s"] = benchmark::Counter(double(tris.size()) * double(state.iterations()) * 1e-6,
+                                                   benchmark::Counter::kIsRate);
+}
+void BM_embree_low(benchmark::State& s) { run_embree(s, bench::EmbreeMode::low); }
+void BM_embree_medium(benchmark::State& s) { run_embree(s, bench::EmbreeMode::medium); }
+void BM_embree_refit(benchmark::State& s) { run_embree(s, bench::EmbreeMode::refit); }
+
+#define DYNBVH_SCENES ->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond)->UseRealTime()->MinTime(1.0)
+BENCHMARK(BM_embree_low) DYNBVH_SCENES;
+BENCHMARK(BM_lbvh) DYNBVH_SCENES;
+BENCHMARK(BM_lbvh63) DYNBVH_SCENES;
+BENCHMARK(BM_ploc_r5) DYNBVH_SCENES;
+BENCHMARK(BM_ploc_r32) DYNBVH_SCENES;
+BENCHMARK(BM_kbvh) DYNBVH_SCENES;
+BENCHMARK(BM_binned_sah) DYNBVH_SCENES;
+BENCHMARK(BM_embree_medium) DYNBVH_SCENES;
+BENCHMARK(BM_embree_refit) DYNBVH_SCENES;
+
+} // namespace
+
+int main(int argc, char** argv) {
+    for (int i = 1; i < argc; ++i)
+        if (std::strncmp(argv[i], "--threads=", 10) == 0) {
+            g_threads = std::atoi(argv[i] + 10);
+            for (int j = i; j + 1 < argc; ++j) argv[j] = argv[j + 1];
+            --argc;
+            break;
+        }
+    benchmark::AddCustomContext("threads", std::to_string(g_threads));
+    benchmark::Initialize(&argc, argv);
+    if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 1;
+    benchmark::RunSpecifiedBenchmarks();
+    benchmark::Shutdown();
+    return 0;
+}

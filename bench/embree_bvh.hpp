@@ -1,0 +1,127 @@
+// Embree 3 (Debian's libembree-dev) wrapped as the reference a user would pick instead of dynbvh:
+// the same triangles, the same thread count, rebuilt or refitted per frame, traced one ray at a time.
+#pragma once
+
+#include <embree3/rtcore.h>
+
+#include <cstring>
+#include <span>
+#include <stdexcept>
+#include <string>
+
+#include <dynbvh/ray.hpp>
+#include <dynbvh/triangle.hpp>
+
+namespace dynbvh::bench {
+
+enum class EmbreeMode { low, medium, high, refit };
+
+inline const char* to_string(EmbreeMode m) {
+    switch (m) {
+        case EmbreeMode::low: return "embree-low";
+        case EmbreeMode::medium: return "embree-medium";
+        case EmbreeMode::high: return "embree-high";
+        case EmbreeMode::refit: return "embree-refit";
+    }
+    return "embree";
+}
+
+/// One Embree device + scene + triangle geometry. `update(tris)` copies the frame's vertices
+/// into Embree's buffer (not timed by callers); `commit()` is the build (or refit) to time.
+class EmbreeBvh {
+public:
+    EmbreeBvh(int threads, EmbreeMode mode) : mode_(mode) {
+        const std::string cfg = "threads=" + std::to_string(threads > 0 ? threads : 0) + ",set_affinity=0";
+        device_ = rtcNewDevice(cfg.c_str());
+        if (!device_) throw std::runtime_error("embree: rtcNewDevice failed");
+    }
+    EmbreeBvh(const EmbreeBvh&) = delete;
+    EmbreeBvh& operator=(const EmbreeBvh&) = delete;
+    ~EmbreeBvh() {
+        release_scene();
+        rtcReleaseDevice(device_);
+    }
+
+    /// Copies triangles into Embree's vertex buffer (recreating the geometry when the count changes).
+    void update(std::span<const Trianglef> tris) {
+        if (!scene_ || tris.size() != count_) create(tris.size());
+        auto* v = static_cast<float*>(rtcGetGeometryBufferData(geom_, RTC_BUFFER_TYPE_VERTEX, 0));
+        std::memcpy(v, tris.data(), tris.size() * sizeof(Trianglef));
+        rtcUpdateGeometryBuffer(geom_, RTC_BUFFER_TYPE_VERTEX, 0);
+        rtcCommitGeometry(geom_);
+    }
+    /// Builds (or refits, in refit mode after the first build) the acceleration structure.
+    void commit() { rtcCommitScene(scene_); }
+
+    Hitf intersect(const Rayf& r) const {
+        RTCIntersectContext ctx;
+        rtcInitIntersectContext(&ctx);
+        RTCRayHit rh;
+        fill(rh.ray, r);
+        rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+        rh.hit.primID = RTC_INVALID_GEOMETRY_ID;
+        rtcIntersect1(scene_, &ctx, &rh);
+        Hitf h;
+        if (rh.hit.geomID != RTC_INVALID_GEOMETRY_ID) {
+            h.t = rh.ray.tfar;
+            h.u = rh.hit.u;
+            h.v = rh.hit.v;
+            h.prim = rh.hit.primID;
+        }
+        return h;
+    }
+    bool occluded(const Rayf& r) const {
+        RTCIntersectContext ctx;
+        rtcInitIntersectContext(&ctx);
+        RTCRay ray;
+        fill(ray, r);
+        rtcOccluded1(scene_, &ctx, &ray);
+        return ray.tfar < 0;
+    }
+    EmbreeMode mode() const { return mode_; }
+
+private:
+    static void fill(RTCRay& ray, const Rayf& r) {
+        ray.org_x = r.org.x; ray.org_y = r.org.y; ray.org_z = r.org.z;
+        ray.dir_x = r.dir.x; ray.dir_y = r.dir.y; ray.dir_z = r.dir.z;
+        ray.tnear = r.tmin;
+        ray.tfar = r.tmax;
+        ray.time = 0;
+        ray.mask = ~0u;
+        ray.id = 0;
+        ray.flags = 0;
+    }
+    void create(std::size_t n) {
+        release_scene();
+        scene_ = rtcNewScene(device_);
+        const bool refit = mode_ == EmbreeMode::refit;
+        const RTCBuildQuality q = mode_ == EmbreeMode::low ? RTC_BUILD_QUALITY_LOW
+                                  : mode_ == EmbreeMode::high ? RTC_BUILD_QUALITY_HIGH
+                                  : refit ? RTC_BUILD_QUALITY_REFIT : RTC_BUILD_QUALITY_MEDIUM;
+        rtcSetSceneFlags(scene_, RTC_SCENE_FLAG_DYNAMIC);
+        rtcSetSceneBuildQuality(scene_, refit ? RTC_BUILD_QUALITY_LOW : q);
+        geom_ = rtcNewGeometry(device_, RTC_GEOMETRY_TYPE_TRIANGLE);
+        rtcSetGeometryBuildQuality(geom_, q);
+        // Vertices in our triangle layout (3 consecutive points per triangle), plus padding Embree reads past the end.
+        rtcSetNewGeometryBuffer(geom_, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, sizeof(float) * 3, 3 * n + 1);
+        auto* idx = static_cast<unsigned*>(rtcSetNewGeometryBuffer(geom_, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3,
+                                                                    sizeof(unsigned) * 3, n));
+        for (std::size_t i = 0; i < 3 * n; ++i) idx[i] = unsigned(i);
+        rtcAttachGeometry(scene_, geom_);
+        count_ = n;
+    }
+    void release_scene() {
+        if (geom_) rtcReleaseGeometry(geom_);
+        if (scene_) rtcReleaseScene(scene_);
+        geom_ = nullptr;
+        scene_ = nullptr;
+    }
+
+    EmbreeMode mode_;
+    RTCDevice device_ = nullptr;
+    RTCScene scene_ = nullptr;
+    RTCGeometry geom_ = nullptr;
+    std::size_t count_ = 0;
+};
+
+} // namespace dynbvh::bench

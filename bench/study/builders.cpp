@@ -1,0 +1,280 @@
+#include "builders.hpp"
+
+#include <charconv>
+#include <cmath>
+#include <sstream>
+#include <stdexcept>
+
+#include <dynbvh/binned_sah.hpp>
+#include <dynbvh/bvh.hpp>
+#include <dynbvh/kbvh.hpp>
+#include <dynbvh/lbvh.hpp>
+#include <dynbvh/ploc.hpp>
+#include <dynbvh/refit.hpp>
+#include <dynbvh/sah.hpp>
+#include <dynbvh/traverse.hpp>
+
+#include "options.hpp"
+
+#if defined(DYNBVH_STUDY_EMBREE)
+#include "../embree_bvh.hpp"
+#endif
+
+namespace dynbvh::study {
+
+namespace {
+
+struct KindName {
+    Kind kind;
+    const char* name;
+};
+constexpr KindName kind_names[] = {
+    {Kind::lbvh, "lbvh"},           {Kind::kbvh, "kbvh"},
+    {Kind::ploc, "ploc"},           {Kind::binned_sah, "binned-sah"},
+    {Kind::refit, "refit"},         {Kind::embree_low, "embree-low"},
+    {Kind::embree_medium, "embree-medium"}, {Kind::embree_refit, "embree-refit"},
+};
+
+std::string fmt_float(float v) {
+    char buf[32];
+    const auto r = std::to_chars(buf, buf + sizeof buf, v);
+    return std::string(buf, r.ptr);
+}
+
+template <class T>
+T knob_number(const std::string& spec, const std::string& key, const std::string& v) {
+    T x{};
+    const char* end = v.data() + v.size();
+    const auto r = std::from_chars(v.data(), end, x);
+    if (v.empty() || r.ec != std::errc() || r.ptr != end)
+        throw std::invalid_argument("builder '" + spec + "': " + key + "=" + v + " is not a number");
+    return x;
+}
+
+} // namespace
+
+std::string BuilderSpec::base() const {
+    for (const auto& k : kind_names)
+        if (k.kind == kind) return k.name;
+    return "?";
+}
+
+std::string BuilderSpec::name() const {
+    const BuilderSpec d{.kind = kind};
+    std::string s = base();
+    if (radius != d.radius) s += ":r=" + std::to_string(radius);
+    if (beta != d.beta) s += ":beta=" + fmt_float(beta);
+    if (morton_bits != d.morton_bits) s += ":bits=" + std::to_string(morton_bits);
+    if (max_leaf != d.max_leaf) s += ":leaf=" + std::to_string(max_leaf);
+    if (bins != d.bins) s += ":bins=" + std::to_string(bins);
+    if (fast_box) s += ":box=fast";
+    if (fast_tri) s += ":tri=mt";
+    if (precomputed) s += ":prim=pre";
+    return s;
+}
+
+std::vector<std::string> all_builder_names() {
+    std::vector<std::string> v;
+    for (const auto& k : kind_names) v.push_back(k.name);
+    return v;
+}
+
+BuilderSpec parse_builder(const std::string& spec) {
+    const auto parts = split_list(spec, ':');
+    if (parts.empty()) throw std::invalid_argument("empty builder name");
+    BuilderSpec b;
+    bool found = false;
+    for (const auto& k : kind_names)
+        if (parts[0] == k.name) {
+            b.kind = k.kind;
+            found = true;
+        }
+    if (!found) {
+        std::string msg = "unknown builder '" + parts[0] + "'; valid:";
+        for (const auto& k : kind_names) msg += std::string(" ") + k.name;
+        throw std::invalid_argument(msg);
+    }
+    const bool ours = !b.is_embree();
+    const bool uses_radius = b.kind == Kind::ploc || b.kind == Kind::kbvh;
+    const bool uses_bits = b.kind == Kind::ploc || b.kind == Kind::kbvh || b.kind == Kind::lbvh || b.kind == Kind::refit;
+    for (std::size_t i = 1; i < parts.size(); ++i) {
+        const auto eq = parts[i].find('=');
+        if (eq == std::string::npos) throw std::invalid_argument("builder '" + spec + "': knob '" + parts[i] + "' is not key=value");
+        const std::string key = parts[i].substr(0, eq), v = parts[i].substr(eq + 1);
+        auto reject = [&] { throw std::invalid_argument("builder '" + spec + "': " + parts[0] + " has no knob '" + key + "'"); };
+        if (key == "r") {
+            if (!uses_radius) reject();
+            b.radius = knob_number<std::uint32_t>(spec, key, v);
+            if (b.radius < 1 || b.radius > 65536) throw std::invalid_argument("builder '" + spec + "': r must be in 1..65536");
+        } else if (key == "beta") {
+            if (b.kind != Kind::kbvh) reject();
+            b.beta = knob_number<float>(spec, key, v);
+            if (!(b.beta >= 0 && b.beta <= 4)) throw std::invalid_argument("builder '" + spec + "': beta must be in [0, 4]");
+        } else if (key == "bits") {
+            if (!uses_bits) reject();
+            b.morton_bits = knob_number<int>(spec, key, v);
+            if (b.morton_bits != 30 && b.morton_bits != 63) throw std::invalid_argument("builder '" + spec + "': bits must be 30 or 63");
+        } else if (key == "leaf") {
+            if (!ours) reject();
+            b.max_leaf = knob_number<std::uint32_t>(spec, key, v);
+            if (b.max_leaf < 1 || b.max_leaf > 256) throw std::invalid_argument("builder '" + spec + "': leaf must be in 1..256");
+        } else if (key == "bins") {
+            if (b.kind != Kind::binned_sah) reject();
+            b.bins = knob_number<std::uint32_t>(spec, key, v);
+            if (b.bins < 2 || b.bins > 1024) throw std::invalid_argument("builder '" + spec + "': bins must be in 2..1024");
+        } else if (key == "box") {
+            if (!ours) reject();
+            if (v != "fast" && v != "robust") throw std::invalid_argument("builder '" + spec + "': box must be fast or robust");
+            b.fast_box = v == "fast";
+        } else if (key == "tri") {
+            if (!ours) reject();
+            if (v != "mt" && v != "watertight") throw std::invalid_argument("builder '" + spec + "': tri must be mt or watertight");
+            b.fast_tri = v == "mt";
+        } else if (key == "prim") {
+            if (!ours) reject();
+            if (v != "pre" && v != "indexed") throw std::invalid_argument("builder '" + spec + "': prim must be pre or indexed");
+            b.precomputed = v == "pre";
+        } else {
+            reject();
+        }
+    }
+    return b;
+}
+
+bool embree_available() {
+#if defined(DYNBVH_STUDY_EMBREE)
+    return true;
+#else
+    return false;
+#endif
+}
+
+std::string embree_version() {
+#if defined(DYNBVH_STUDY_EMBREE) && defined(RTC_VERSION_STRING)
+    return RTC_VERSION_STRING;
+#elif defined(DYNBVH_STUDY_EMBREE)
+    return "3";
+#else
+    return "";
+#endif
+}
+
+namespace {
+
+/// The tracing loop every builder shares: tiles in parallel through the executor, one ray per pixel.
+template <class Intersect>
+void trace_tiles(const Backend& backend, const RayGen& gen, std::span<std::uint32_t> out, const Intersect& isect) {
+    const int w = gen.width();
+    backend.for_tasks(gen.tile_count(), [&](std::size_t k) {
+        const Tile t = gen.tile(k);
+        for (int y = t.y0; y < t.y1; ++y)
+            for (int x = t.x0; x < t.x1; ++x) out[std::size_t(y) * std::size_t(w) + std::size_t(x)] = isect(gen.ray(x, y));
+    });
+}
+
+/// Our builders on executor Exec with primitive policy Prim.
+template <class Exec, class Prim>
+class DynAccel final : public Accel {
+public:
+    using BvhT = Bvh<Node<>, Prim>;
+
+    DynAccel(const BuilderSpec& spec, const Exec& ex, const Backend& backend) : spec_(spec), ex_(ex), backend_(backend) {}
+
+    void build(std::span<const Trianglef> tris) override {
+        previous_ = std::move(bvh_);   // freed untimed in release_previous()
+        const LeafConfig leaves{.max_leaf_size = spec_.max_leaf};
+        switch (spec_.kind) {
+            case Kind::lbvh:
+                bvh_ = lbvh::build<Node<>, Prim>(tris, {.morton_bits = spec_.morton_bits, .leaves = leaves}, ex_);
+                break;
+            case Kind::refit:
+                if (previous_.empty() || previous_.primitive_count != tris.size()) {
+                    bvh_ = lbvh::build<Node<>, Prim>(tris, {.morton_bits = spec_.morton_bits, .leaves = leaves}, ex_);
+                } else {
+                    bvh_ = std::move(previous_);
+                    dynbvh::refit(bvh_, tris, ex_);
+                }
+                break;
+            case Kind::ploc:
+                bvh_ = ploc::build<Node<>, Prim>(
+                    tris, {.radius = spec_.radius, .morton_bits = spec_.morton_bits, .leaves = leaves}, ex_);
+                break;
+            case Kind::kbvh: {
+                const kbvh::Config<kbvh::with_ploc> cfg{
+                    .split = {.beta = spec_.beta},
+                    .builder = {.radius = spec_.radius, .morton_bits = spec_.morton_bits, .leaves = leaves}};
+                bvh_ = kbvh::build<Node<>, Prim>(tris, cfg, ex_);
+                break;
+            }
+            case Kind::binned_sah:
+                bvh_ = binned_sah::build<Node<>, Prim>(tris, {.bins = spec_.bins, .leaves = leaves}, ex_);
+                break;
+            default:
+                throw std::logic_error("DynAccel: not one of our builders");
+        }
+    }
+    void release_previous() override { previous_ = BvhT{}; }
+
+    void trace(std::span<const Trianglef> tris, const RayGen& gen, std::span<std::uint32_t> out) override {
+        if (spec_.fast_box && spec_.fast_tri) run<trace::fast>(tris, gen, out);
+        else if (spec_.fast_box) run<trace::policy<box::fast, tri::watertight>>(tris, gen, out);
+        else if (spec_.fast_tri) run<trace::policy<box::robust, tri::moller_trumbore>>(tris, gen, out);
+        else run<trace::robust>(tris, gen, out);
+    }
+    std::optional<double> sah() const override { return sah_cost(bvh_, SahConfig{.ct = 3, .ci = 2}, ex_); }
+    std::optional<std::size_t> memory_bytes() const override { return bvh_.memory_bytes(); }
+
+private:
+    template <class Policy>
+    void run(std::span<const Trianglef> tris, const RayGen& gen, std::span<std::uint32_t> out) const {
+        const BvhT& bvh = bvh_;
+        trace_tiles(backend_, gen, out, [&](const Rayf& r) { return dynbvh::intersect<Policy>(bvh, tris, r).prim; });
+    }
+
+    BuilderSpec spec_;
+    const Exec& ex_;
+    const Backend& backend_;
+    BvhT bvh_, previous_;
+};
+
+#if defined(DYNBVH_STUDY_EMBREE)
+class EmbreeAccel final : public Accel {
+public:
+    EmbreeAccel(const BuilderSpec& spec, const Backend& backend)
+        : bvh_(backend.threads(), spec.kind == Kind::embree_low      ? bench::EmbreeMode::low
+                                  : spec.kind == Kind::embree_medium ? bench::EmbreeMode::medium
+                                                                     : bench::EmbreeMode::refit),
+          backend_(backend) {}
+    void prepare(std::span<const Trianglef> tris) override { bvh_.update(tris); }
+    void build(std::span<const Trianglef>) override { bvh_.commit(); }
+    void trace(std::span<const Trianglef>, const RayGen& gen, std::span<std::uint32_t> out) override {
+        const bench::EmbreeBvh& bvh = bvh_;
+        trace_tiles(backend_, gen, out, [&](const Rayf& r) { return bvh.intersect(r).prim; });
+    }
+    std::optional<double> sah() const override { return std::nullopt; }
+    std::optional<std::size_t> memory_bytes() const override { return std::nullopt; }
+
+private:
+    bench::EmbreeBvh bvh_;
+    const Backend& backend_;
+};
+#endif
+
+} // namespace
+
+std::unique_ptr<Accel> make_accel(const BuilderSpec& spec, const Backend& backend) {
+    if (spec.is_embree()) {
+#if defined(DYNBVH_STUDY_EMBREE)
+        return std::make_unique<EmbreeAccel>(spec, backend);
+#else
+        throw std::runtime_error("builder " + spec.name() + ": this dynbvh-study was built without Embree 3 (install libembree-dev)");
+#endif
+    }
+    return backend.visit([&](const auto& ex) -> std::unique_ptr<Accel> {
+        using Exec = std::decay_t<decltype(ex)>;
+        if (spec.precomputed) return std::make_unique<DynAccel<Exec, prim::precomputed>>(spec, ex, backend);
+        return std::make_unique<DynAccel<Exec, prim::indexed>>(spec, ex, backend);
+    });
+}
+
+} // namespace dynbvh::study

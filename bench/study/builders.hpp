@@ -1,0 +1,77 @@
+// The builders the study compares, behind one interface: our four builders (plus refit) and
+// Embree 3. A builder is named by a spec string, "ploc" or "ploc:r=16:leaf=4", so that the sweep
+// and the command line share one vocabulary.
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <optional>
+#include <span>
+#include <string>
+#include <vector>
+
+#include <dynbvh/triangle.hpp>
+
+#include "backend.hpp"
+#include "camera.hpp"
+
+namespace dynbvh::study {
+
+enum class Kind { lbvh, kbvh, ploc, binned_sah, refit, embree_low, embree_medium, embree_refit };
+
+/// A builder and its knobs (defaults = the library's defaults = the thesis's settings).
+struct BuilderSpec {
+    Kind kind = Kind::lbvh;
+    std::uint32_t radius = 5;      ///< ploc, kbvh: PLOC search radius
+    float beta = 0.05f;            ///< kbvh: presplit budget
+    int morton_bits = 30;          ///< lbvh, ploc, kbvh, refit: 30 or 63
+    std::uint32_t max_leaf = 8;    ///< every builder of ours: most references per leaf
+    std::uint32_t bins = 32;       ///< binned-sah
+    bool fast_box = false;         ///< box::fast instead of box::robust
+    bool fast_tri = false;         ///< tri::moller_trumbore instead of tri::watertight
+    bool precomputed = false;      ///< prim::precomputed instead of prim::indexed
+
+    bool is_embree() const noexcept { return kind == Kind::embree_low || kind == Kind::embree_medium || kind == Kind::embree_refit; }
+    /// Keeps a tree from frame to frame (refit, embree-refit).
+    bool stateful() const noexcept { return kind == Kind::refit || kind == Kind::embree_refit; }
+    /// Canonical spec: the base name plus every knob that differs from the default ("ploc:r=16").
+    std::string name() const;
+    /// The base name ("ploc").
+    std::string base() const;
+};
+
+/// Parses "ploc:r=16:leaf=4". Throws std::invalid_argument naming the spec and the problem.
+BuilderSpec parse_builder(const std::string& spec);
+
+/// Every builder name, ours first, Embree's last (whether or not Embree is compiled in).
+std::vector<std::string> all_builder_names();
+
+/// Whether this binary was built with Embree 3.
+bool embree_available();
+/// Embree's version string, or empty.
+std::string embree_version();
+
+/// One builder's acceleration structure for one run over a scene's frames.
+class Accel {
+public:
+    virtual ~Accel() = default;
+    /// Untimed: hand the frame's triangles over (Embree copies them into its buffers).
+    virtual void prepare(std::span<const Trianglef> tris) { (void)tris; }
+    /// Timed: build (or refit) the structure over `tris`.
+    virtual void build(std::span<const Trianglef> tris) = 0;
+    /// Untimed: free what the last build replaced.
+    virtual void release_previous() {}
+    /// Timed: one closest-hit ray per pixel of `gen`, in parallel over tiles; out[y * width + x] = the
+    /// hit triangle's index or invalid_prim.
+    virtual void trace(std::span<const Trianglef> tris, const RayGen& gen, std::span<std::uint32_t> out) = 0;
+    /// SAH cost of the current tree (Ct = 3, Ci = 2); none for Embree.
+    virtual std::optional<double> sah() const = 0;
+    /// Bytes of the current tree; none for Embree.
+    virtual std::optional<std::size_t> memory_bytes() const = 0;
+};
+
+/// Makes the structure for `spec`, running on `backend` (kept by reference: it must outlive the Accel).
+/// Throws std::runtime_error for an Embree builder in a binary without Embree.
+std::unique_ptr<Accel> make_accel(const BuilderSpec& spec, const Backend& backend);
+
+} // namespace dynbvh::study

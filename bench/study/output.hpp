@@ -1,0 +1,29 @@
+// study.json and study.csv: every per-frame measurement with the machine, compiler, backend,
+// thread count and date. The JSON's layout is documented in study_json's comment.
+#pragma once
+
+#include <string>
+
+#include "runner.hpp"
+
+namespace dynbvh::study {
+
+/// The whole result as JSON:
+/// { "format": "dynbvh-study 1", "machine": {...}, "compiler", "backend", "threads", "date", "embree",
+///   "options": {...}, "scenes": [...], "builders": [...],
+///   "results": [ { "scene", "builder", "width", "height", "rays_per_frame", "frames", "reps",
+///                  "total_build_ms", "total_trace_ms", "mean_build_ms", "mean_trace_ms", "mrays_per_s",
+///                  "fps", "mean_sah", "mean_memory_bytes",
+///                  "per_frame": [ {"rep", "frame", "triangles", "build_ms", "trace_ms", "sah", "memory_bytes", "hits"} ] } ],
+///   "images": [...], "skipped": [...], "notices": [...], "sweep": {...} }
+/// fps = per_frame count / (sum of build_ms + trace_ms) * 1000; null where a figure does not exist (Embree SAH).
+std::string study_json(const StudyResults& r);
+
+/// One CSV row per measured frame (study and sweep): kind,scene,builder,group,width,height,rep,frame,
+/// triangles,build_ms,trace_ms,sah,memory_bytes,hits.
+std::string study_csv(const StudyResults& r);
+
+/// Writes `text` to `path` (replacing it); throws std::runtime_error naming the file on failure.
+void write_text(const std::string& path, const std::string& text);
+
+} // namespace dynbvh::study
