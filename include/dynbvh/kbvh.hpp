@@ -1,0 +1,77 @@
+/// @file kbvh.hpp
+/// KBVH: presplitting (presplit.hpp, Karras & Aila 2013) followed by a builder over the fragments,
+/// PLOC by default. Large, badly fitting triangles become several tightly boxed references, which
+/// mostly pays off on scenes with big diagonal triangles next to small ones (architecture, breaking
+/// objects). Costs the split pass plus a build over (1 + beta) times the references; a leaf holding
+/// two fragments of one triangle tests it once.
+///
+/// One line, PLOC underneath:
+///     auto bvh = dynbvh::kbvh::build(tris, {.split = {.beta = 0.05f}}, dynbvh::exec::omp{});
+/// LBVH (or binned SAH) underneath: name the builder in the Config's type,
+///     dynbvh::kbvh::Config<dynbvh::kbvh::with_lbvh> cfg{.split = {.beta = 0.1f}, .builder = {.morton_bits = 63}};
+///     auto bvh = dynbvh::kbvh::build(tris, cfg, dynbvh::exec::omp{});
+/// or spell it: dynbvh::kbvh::build<dynbvh::Node<>, dynbvh::prim::indexed, dynbvh::kbvh::with_lbvh>(tris).
+#pragma once
+
+#include <span>
+#include <utility>
+
+#include "binned_sah.hpp"
+#include "bvh.hpp"
+#include "collapse.hpp"
+#include "executor.hpp"
+#include "lbvh.hpp"
+#include "ploc.hpp"
+#include "presplit.hpp"
+#include "references.hpp"
+
+namespace dynbvh::kbvh {
+
+/// Builder policies: which builder runs over the fragments. A policy names its Config and
+/// forwards to that builder's build_tree (which may reorder the references).
+struct with_ploc {
+    using config = ploc::Config;
+    template <class T, class Exec>
+    static BinaryTree build_tree(References<T>& refs, const config& cfg, const Exec& ex) { return ploc::build_tree(refs, cfg, ex); }
+};
+struct with_lbvh {
+    using config = lbvh::Config;
+    template <class T, class Exec>
+    static BinaryTree build_tree(References<T>& refs, const config& cfg, const Exec& ex) { return lbvh::build_tree(refs, cfg, ex); }
+};
+struct with_binned_sah {
+    using config = binned_sah::Config;
+    template <class T, class Exec>
+    static BinaryTree build_tree(References<T>& refs, const config& cfg, const Exec& ex) { return binned_sah::build_tree(refs, cfg, ex); }
+};
+
+/// KBVH knobs: the split budget and the chosen builder's own Config (its `leaves` field sets the
+/// leaf collapse). `{.split = {.beta = 0.1f}, .builder = {.radius = 10}}`.
+template <class Builder = with_ploc>
+struct Config {
+    presplit::Config split{};             ///< presplit budget (beta, default 0.05 as in the study)
+    typename Builder::config builder{};   ///< knobs of the builder over the fragments, leaf collapse included
+};
+
+/// Presplit fragments of `tris` and the builder's raw tree over them (tree leaves index the returned
+/// references, whose `prim` names the user's triangle). For users who emit their own layout.
+template <class Builder = with_ploc, class T, class Exec>
+std::pair<References<T>, BinaryTree> build_tree(std::span<const Triangle<T>> tris, const Config<Builder>& cfg, const Exec& ex) {
+    auto refs = make_references(tris, ex);
+    if (presplit::budget(refs.size(), cfg.split) > 0) refs = presplit::split(refs, tris, cfg.split, ex);
+    auto tree = Builder::build_tree(refs, cfg.builder, ex);
+    return {std::move(refs), std::move(tree)};
+}
+
+/// Builds a KBVH over `tris` (see the file comment). Triangles with non-finite vertices are left out
+/// (counted in Bvh::excluded); `tris` is not modified. A split triangle may appear in several leaves
+/// of the result, at most once per leaf. Throws what presplit::split and the builder throw.
+/// @tparam Builder with_ploc (default), with_lbvh or with_binned_sah; deduced from a named Config.
+template <class NodeT = Node<>, class Prim = prim::indexed, class Builder = with_ploc, class Exec = exec::default_executor>
+Bvh<NodeT, Prim> build(std::span<const Triangle<typename NodeT::scalar_type>> tris, const Config<Builder>& cfg = {},
+                       const Exec& ex = {}) {
+    auto [refs, tree] = build_tree<Builder>(tris, cfg, ex);
+    return emit_bvh<NodeT, Prim>(tree, refs, tris, cfg.builder.leaves, ex);
+}
+
+} // namespace dynbvh::kbvh
