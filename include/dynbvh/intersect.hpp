@@ -1,0 +1,439 @@
+/// @file intersect.hpp
+/// Ray-box and ray-triangle tests as compile-time policies.
+///
+/// Every policy has the same two-step shape: a per-ray precomputation
+/// `Policy::prepared<T> p(ray)` (done once per ray) and a static `Policy::test(p, ...)`
+/// (done once per box or triangle; box policies also offer `test_octant<Oct>`, the same test with
+/// the ray's direction signs known at compile time). Traversal (traverse.hpp) bundles one box and
+/// one triangle policy; the defaults are the robust ones. One-off queries: `intersect_triangle`,
+/// `intersect_box` (end of this file).
+///
+///  - box::robust (default)        Ize 2013, "Robust BVH Ray Traversal": no hit is lost to rounding.
+///  - box::fast                    plain slab test with a precomputed inverse direction.
+///  - tri::watertight (default)    Woop, Benthin, Wald 2013, "Watertight Ray/Triangle Intersection":
+///                                 a ray through a shared edge or vertex never passes between triangles.
+///  - tri::moller_trumbore         Möller & Trumbore 1997, fast, not watertight.
+///
+/// All tests treat NaN as "no hit" (comparisons are written so that NaN fails them) and are free of UB
+/// for any input. A prepared ray of a ray that is not `traceable` (NaN or infinite origin or direction,
+/// zero direction, NaN or empty [tmin, tmax]) misses everything; traversal also rejects such rays up front.
+/// Scalars: float or double (the scalar of the BVH's nodes).
+#pragma once
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <type_traits>
+#include <utility>
+
+#include "ray.hpp"
+#include "triangle.hpp"
+
+/// Forces inlining of the per-box and per-triangle tests into traversal loops (they are small, and a
+/// call per box costs more than the test).
+/// DYNBVH_NOINLINE keeps rarely taken paths out of those loops.
+#if defined(__GNUC__) || defined(__clang__)
+#if !defined(DYNBVH_ALWAYS_INLINE)
+#define DYNBVH_ALWAYS_INLINE inline __attribute__((always_inline))
+#endif
+#if !defined(DYNBVH_NOINLINE)
+#define DYNBVH_NOINLINE __attribute__((noinline))
+#endif
+#elif defined(_MSC_VER)
+#if !defined(DYNBVH_ALWAYS_INLINE)
+#define DYNBVH_ALWAYS_INLINE __forceinline
+#endif
+#if !defined(DYNBVH_NOINLINE)
+#define DYNBVH_NOINLINE __declspec(noinline)
+#endif
+#else
+#if !defined(DYNBVH_ALWAYS_INLINE)
+#define DYNBVH_ALWAYS_INLINE inline
+#endif
+#if !defined(DYNBVH_NOINLINE)
+#define DYNBVH_NOINLINE
+#endif
+#endif
+
+namespace dynbvh {
+
+/// Higham's gamma(n) = n u / (1 - n u), u the unit roundoff of T: a bound on the relative error of n
+/// chained roundings.
+template <class T>
+constexpr T rounding_gamma(int n) noexcept {
+    constexpr T u = std::numeric_limits<T>::epsilon() * T(0.5);
+    return (T(n) * u) / (T(1) - T(n) * u);
+}
+
+/// True when a ray can be traced at all: finite origin and direction, a non-zero direction and an
+/// interval [tmin, tmax] that is not NaN and not empty (tmin == tmax is allowed; tmax may be +inf).
+/// Traversal returns "no hit" for any other ray.
+template <class T>
+inline bool traceable(const Ray<T>& r) noexcept {
+    return is_finite(r.org) && is_finite(r.dir) && (r.dir.x != T(0) || r.dir.y != T(0) || r.dir.z != T(0)) &&
+           r.tmin <= r.tmax;  // false when either is NaN
+}
+
+namespace detail {
+// max/min that ignore a NaN second operand `x` (0 * inf in a slab test when the origin lies exactly on
+// a slab plane of an axis the ray is parallel to: such a ray is inside that slab, so the axis must not
+// constrain the interval). `acc` starts as tmin / tmax; it is NaN only for the prepared copy of a ray
+// that is not traceable, and then stays NaN, so the test fails.
+template <class T> inline T max_keep(T acc, T x) noexcept { return acc < x ? x : acc; }
+template <class T> inline T min_keep(T acc, T x) noexcept { return x < acc ? x : acc; }
+
+/// The tmin a prepared ray stores: NaN for a ray that is not traceable, which makes every box and
+/// triangle test of that prepared ray fail (NaN compares false), so policies are safe on their own too.
+template <class T>
+inline T prepared_tmin(const Ray<T>& r) noexcept {
+    return traceable(r) ? r.tmin : std::numeric_limits<T>::quiet_NaN();
+}
+
+/// Calls f(std::integral_constant<int, oct>{}) for the run-time octant 0..7 (one compiled copy each).
+template <class F>
+DYNBVH_ALWAYS_INLINE decltype(auto) dispatch_octant(int octant, F&& f) {
+    switch (octant & 7) {
+    case 0: return f(std::integral_constant<int, 0>{});
+    case 1: return f(std::integral_constant<int, 1>{});
+    case 2: return f(std::integral_constant<int, 2>{});
+    case 3: return f(std::integral_constant<int, 3>{});
+    case 4: return f(std::integral_constant<int, 4>{});
+    case 5: return f(std::integral_constant<int, 5>{});
+    case 6: return f(std::integral_constant<int, 6>{});
+    default: return f(std::integral_constant<int, 7>{});
+    }
+}
+
+template <class T>
+inline void check_scalar() noexcept {
+    static_assert(std::is_same_v<T, float> || std::is_same_v<T, double>, "dynbvh: scalar must be float or double");
+}
+} // namespace detail
+
+namespace box {
+
+/// Ize 2013 robust slab test. The exit distance (the smaller of the slabs' exits and the ray's tmax)
+/// is enlarged by 2 gamma(3) of its magnitude, which covers the three roundings of
+/// (plane - org) * (1 / dir) on both the entry and the exit side: a box the exact ray touches
+/// within [tmin, tmax] is never reported as missed. Direction components +0 and -0 give an
+/// inverse of +inf / -inf with the right sign; an origin lying exactly on a slab plane of such an
+/// axis counts as inside (boxes are closed). Cost over box::fast: one subtraction per slab
+/// (instead of a multiply-add) and three operations per box for the margin.
+///
+/// Interface shared by every box policy: `prepared<T>(ray)`; `test(p, lo, hi, tmax, tentry)`;
+/// `test_octant<Oct>(p, ...)`, the same with the ray's direction octant (`p.octant`, bit a set when
+/// dir[a] has its sign bit set) known at compile time, which traversal uses; `before(tentry, tmax)`.
+struct robust {
+    template <class T>
+    struct prepared {
+        Vec3<T> org;       ///< ray origin
+        Vec3<T> inv;       ///< 1 / dir, correctly rounded (+-inf for +-0)
+        T tmin;            ///< ray.tmin (NaN for a ray that is not traceable: then nothing is hit)
+        int octant = 0;    ///< bit a set when dir[a] has its sign bit set (so -0 counts as negative)
+
+        explicit prepared(const Ray<T>& r) noexcept : org(r.org), tmin(detail::prepared_tmin(r)) {
+            detail::check_scalar<T>();
+            for (std::size_t a = 0; a < 3; ++a) {
+                inv[a] = T(1) / r.dir[a];  // IEEE: 1/+0 = +inf, 1/-0 = -inf
+                octant |= std::signbit(r.dir[a]) ? 1 << a : 0;
+            }
+        }
+    };
+
+    /// The conservative exit bound: x + 2 gamma(3) |x| (the abs form also stays conservative for
+    /// negative distances, i.e. tmin < 0).
+    template <class T>
+    static DYNBVH_ALWAYS_INLINE T widen(T x) noexcept {
+        constexpr T k = T(2) * rounding_gamma<T>(3);
+        return x + k * std::abs(x);
+    }
+
+    /// True when the ray hits box [lo, hi] within [p.tmin, tmax]; `tentry` receives the entry distance
+    /// (>= p.tmin). Never reports a miss for a box the exact ray touches. `Oct` must be `p.octant`.
+    template <int Oct, class T>
+    static DYNBVH_ALWAYS_INLINE bool test_octant(const prepared<T>& p, const Vec3<T>& lo, const Vec3<T>& hi, T tmax,
+                                                 T& tentry) noexcept {
+        const T x0 = ((Oct & 1 ? hi.x : lo.x) - p.org.x) * p.inv.x;
+        const T x1 = ((Oct & 1 ? lo.x : hi.x) - p.org.x) * p.inv.x;
+        const T y0 = ((Oct & 2 ? hi.y : lo.y) - p.org.y) * p.inv.y;
+        const T y1 = ((Oct & 2 ? lo.y : hi.y) - p.org.y) * p.inv.y;
+        const T z0 = ((Oct & 4 ? hi.z : lo.z) - p.org.z) * p.inv.z;
+        const T z1 = ((Oct & 4 ? lo.z : hi.z) - p.org.z) * p.inv.z;
+        const T tn = detail::max_keep(detail::max_keep(detail::max_keep(p.tmin, x0), y0), z0);
+        const T tf = widen(detail::min_keep(detail::min_keep(detail::min_keep(tmax, x1), y1), z1));
+        tentry = tn;
+        return tn <= tf;  // tf is NaN (a miss) only for -inf exits: the ray is parallel to and outside a slab
+    }
+
+    /// `test_octant` with the octant read at run time.
+    template <class T>
+    static bool test(const prepared<T>& p, const Vec3<T>& lo, const Vec3<T>& hi, T tmax, T& tentry) noexcept {
+        return detail::dispatch_octant(p.octant, [&](auto oct) { return test_octant<decltype(oct)::value>(p, lo, hi, tmax, tentry); });
+    }
+
+    /// Whether a box entered at `tentry` can still hold a hit closer than `tmax` (used to skip stale
+    /// stack entries; never stricter than `test`).
+    template <class T>
+    static DYNBVH_ALWAYS_INLINE bool before(T tentry, T tmax) noexcept { return tentry <= widen(tmax); }
+};
+
+/// Plain slab test with precomputed inverse direction and origin * inverse (one multiply-add per
+/// slab). May report a miss for a box the ray only grazes within rounding error, so a triangle lying
+/// in a box face or hit exactly at a vertex can be lost. Zero direction components are replaced by
+/// +-1e-30 (float) / +-1e-300 (double) with their sign, so no NaN arises from 0 * inf; a ray parallel
+/// to an axis and lying exactly in the box's max face on that axis (with +0) or min face (with -0)
+/// therefore counts as leaving the box. Use box::robust where that matters. Same interface as robust.
+struct fast {
+    template <class T>
+    struct prepared {
+        Vec3<T> inv;       ///< 1 / dir (zero components replaced, see above)
+        Vec3<T> org_inv;   ///< org * inv
+        T tmin;
+        int octant = 0;
+
+        explicit prepared(const Ray<T>& r) noexcept : tmin(detail::prepared_tmin(r)) {
+            detail::check_scalar<T>();
+            constexpr T tiny = std::is_same_v<T, float> ? T(1e-30) : T(1e-300);
+            for (std::size_t a = 0; a < 3; ++a) {
+                const T d = std::abs(r.dir[a]) < tiny ? std::copysign(tiny, r.dir[a]) : r.dir[a];
+                inv[a] = T(1) / d;
+                org_inv[a] = r.org[a] * inv[a];
+                octant |= std::signbit(r.dir[a]) ? 1 << a : 0;
+            }
+        }
+    };
+
+    template <int Oct, class T>
+    static DYNBVH_ALWAYS_INLINE bool test_octant(const prepared<T>& p, const Vec3<T>& lo, const Vec3<T>& hi, T tmax,
+                                                 T& tentry) noexcept {
+        const T x0 = (Oct & 1 ? hi.x : lo.x) * p.inv.x - p.org_inv.x;
+        const T x1 = (Oct & 1 ? lo.x : hi.x) * p.inv.x - p.org_inv.x;
+        const T y0 = (Oct & 2 ? hi.y : lo.y) * p.inv.y - p.org_inv.y;
+        const T y1 = (Oct & 2 ? lo.y : hi.y) * p.inv.y - p.org_inv.y;
+        const T z0 = (Oct & 4 ? hi.z : lo.z) * p.inv.z - p.org_inv.z;
+        const T z1 = (Oct & 4 ? lo.z : hi.z) * p.inv.z - p.org_inv.z;
+        const T tn = detail::max_keep(detail::max_keep(detail::max_keep(p.tmin, x0), y0), z0);
+        const T tf = detail::min_keep(detail::min_keep(detail::min_keep(tmax, x1), y1), z1);
+        tentry = tn;
+        return tn <= tf;
+    }
+
+    template <class T>
+    static bool test(const prepared<T>& p, const Vec3<T>& lo, const Vec3<T>& hi, T tmax, T& tentry) noexcept {
+        return detail::dispatch_octant(p.octant, [&](auto oct) { return test_octant<decltype(oct)::value>(p, lo, hi, tmax, tentry); });
+    }
+
+    template <class T>
+    static DYNBVH_ALWAYS_INLINE bool before(T tentry, T tmax) noexcept { return tentry <= tmax; }
+};
+
+} // namespace box
+
+namespace tri {
+
+/// Woop, Benthin, Wald 2013 watertight test. The triangle is translated to the ray origin and sheared
+/// so that the ray runs along the kz axis (kz = axis of largest |dir|); then the 2D edge functions
+/// U, V, W decide the hit by their signs alone. Signs are exact: for float the edge functions are
+/// evaluated in double (products of floats are exact in double, so the sign is exact and no FMA
+/// contraction can change it); for double they are evaluated plainly and re-evaluated with an
+/// error-free difference of products (std::fma) when one is exactly 0 (always, when the target has
+/// FMA, because contraction could break the exact negation of a shared edge's function). Because each
+/// vertex is transformed the same way in every triangle that shares it, neighbouring triangles agree
+/// on which side of their shared edge the ray passes: on a closed mesh no ray escapes through an edge
+/// or a vertex. Front and back faces both hit (so the paper's kx/ky swap for dir[kz] < 0, which only
+/// keeps the winding for culling, is left out); edge-on triangles (U + V + W == 0) miss. t, u, v of a
+/// hit come from a second, accurate evaluation in double (see the code); a hit at t = -0 is reported
+/// as +0. Output: t, and (u, v) with p = (1-u-v) p0 + u p1 + v p2 (the Hit convention).
+///
+/// Interface shared by every triangle policy: `prepared<T>(ray)`; `test(p, tri, tmax, t, u, v)`,
+/// true for a hit with t in [ray.tmin, tmax] (t, u, v written only then).
+struct watertight {
+    template <class T>
+    struct prepared {
+        Vec3<T> org;
+        int kz = 2;                   ///< axis of the largest |dir| (kx = kz + 1, ky = kz + 2, mod 3)
+        T sx = 0, sy = 0;             ///< shear dir[kx] / dir[kz], dir[ky] / dir[kz]
+        T tmin;                       ///< NaN for a ray that is not traceable: then nothing is hit
+        Vec3d org_d;                  ///< origin in double, for t, u, v
+        double sx_d = 0, sy_d = 0;    ///< shear in double
+        double rcp_dz = 1;            ///< 1 / dir[kz] in double
+
+        explicit prepared(const Ray<T>& r) noexcept : org(r.org), tmin(detail::prepared_tmin(r)), org_d(r.org) {
+            detail::check_scalar<T>();
+            const Vec3<T> a{std::abs(r.dir.x), std::abs(r.dir.y), std::abs(r.dir.z)};
+            kz = largest_axis(a);
+            const std::size_t z = std::size_t(kz), x = (z + 1) % 3, y = (z + 2) % 3;
+            // One division per ray. The shear need not be correctly rounded: watertightness only needs
+            // every triangle of this ray to use the same values.
+            rcp_dz = 1.0 / double(r.dir[z]);
+            sx_d = double(r.dir[x]) * rcp_dz;
+            sy_d = double(r.dir[y]) * rcp_dz;
+            sx = T(sx_d);
+            sy = T(sy_d);
+        }
+    };
+
+    /// Left to the compiler to inline: traversal calls it once per leaf triangle, and one copy per
+    /// octant-specialised traversal loop would cost more in code size than the call does.
+    template <class T>
+    static bool test(const prepared<T>& p, const Triangle<T>& tri, T tmax, T& t, T& u, T& v) noexcept {
+        switch (p.kz) {
+        case 0: return test_axes<1, 2, 0>(p, tri, tmax, t, u, v);
+        case 1: return test_axes<2, 0, 1>(p, tri, tmax, t, u, v);
+        default: return test_axes<0, 1, 2>(p, tri, tmax, t, u, v);
+        }
+    }
+
+private:
+    template <std::size_t KX, std::size_t KY, std::size_t KZ, class T>
+    static DYNBVH_ALWAYS_INLINE bool test_axes(const prepared<T>& p, const Triangle<T>& tri, T tmax, T& t, T& u, T& v) noexcept {
+        using W = double;  // edge-function precision: exact signs for float, see the class comment
+        const Vec3<T> A = tri.p0 - p.org, B = tri.p1 - p.org, C = tri.p2 - p.org;
+        const T ax = A[KX] - p.sx * A[KZ], ay = A[KY] - p.sy * A[KZ];
+        const T bx = B[KX] - p.sx * B[KZ], by = B[KY] - p.sy * B[KZ];
+        const T cx = C[KX] - p.sx * C[KZ], cy = C[KY] - p.sy * C[KZ];
+
+        W eu, ev, ew;
+        if constexpr (std::is_same_v<T, float>) {
+            eu = W(cx) * W(by) - W(cy) * W(bx);
+            ev = W(ax) * W(cy) - W(ay) * W(cx);
+            ew = W(bx) * W(ay) - W(by) * W(ax);
+        } else {
+#if defined(__FMA__) || defined(FP_FAST_FMA)
+            eu = diff_of_products(cx, by, cy, bx);
+            ev = diff_of_products(ax, cy, ay, cx);
+            ew = diff_of_products(bx, ay, by, ax);
+#else
+            eu = cx * by - cy * bx;
+            ev = ax * cy - ay * cx;
+            ew = bx * ay - by * ax;
+            if (eu == 0 || ev == 0 || ew == 0) [[unlikely]] {
+                eu = diff_of_products(cx, by, cy, bx);
+                ev = diff_of_products(ax, cy, ay, cx);
+                ew = diff_of_products(bx, ay, by, ax);
+            }
+#endif
+        }
+        // Both windings hit; a NaN fails both alternatives. Bitwise & and | (one branch instead of six
+        // hard-to-predict ones).
+        const bool inside_pos = (eu >= 0) & (ev >= 0) & (ew >= 0);
+        const bool inside_neg = (eu <= 0) & (ev <= 0) & (ew <= 0);
+        if (!(inside_pos | inside_neg)) return false;
+        const W det = eu + ev + ew;
+        if (det == 0) return false;
+        return finish<KX, KY, KZ>(p, tri, tmax, eu, ev, ew, det, t, u, v);
+    }
+
+    // t, u, v from a second, accurate evaluation in double (only for hits, so it hardly costs):
+    // vertices relative to the origin (exact differences for float input), sheared in double, edge
+    // functions in double. Where the exact ray passes inside the triangle this gives the plane's t to
+    // within a hair, so equal hits of overlapping coplanar triangles agree to the last bit of float.
+    // Where the sign test accepted a ray that passes a hair outside (at an edge or vertex), the
+    // weights of that test are used instead: they put the hit point on the triangle, so t stays
+    // consistent with the triangle's box (up to box::robust's margin) and traversal finds what brute
+    // force finds.
+    template <std::size_t KX, std::size_t KY, std::size_t KZ, class T>
+    static DYNBVH_NOINLINE bool finish(const prepared<T>& p, const Triangle<T>& tri, T tmax, double eu, double ev, double ew, double det,
+                       T& t, T& u, T& v) noexcept {
+        const double s = det > 0 ? 1.0 : -1.0;
+        const double az = double(tri.p0[KZ]) - p.org_d[KZ], bz = double(tri.p1[KZ]) - p.org_d[KZ],
+                     cz = double(tri.p2[KZ]) - p.org_d[KZ];
+        const double axd = (double(tri.p0[KX]) - p.org_d[KX]) - p.sx_d * az, ayd = (double(tri.p0[KY]) - p.org_d[KY]) - p.sy_d * az;
+        const double bxd = (double(tri.p1[KX]) - p.org_d[KX]) - p.sx_d * bz, byd = (double(tri.p1[KY]) - p.org_d[KY]) - p.sy_d * bz;
+        const double cxd = (double(tri.p2[KX]) - p.org_d[KX]) - p.sx_d * cz, cyd = (double(tri.p2[KY]) - p.org_d[KY]) - p.sy_d * cz;
+        double w0 = s * (cxd * byd - cyd * bxd);
+        double w1 = s * (axd * cyd - ayd * cxd);
+        double w2 = s * (bxd * ayd - byd * axd);
+        double sum = w0 + w1 + w2;
+        // The accurate weights are only trusted when their sum (twice the projected area) exceeds its
+        // own rounding error: for a zero-area triangle whose line the ray meets, or a triangle the
+        // ray grazes edge-on, all three are rounding noise and would put t anywhere on the ray.
+        const double noise = 0x1p-48 * (std::abs(cxd * byd) + std::abs(cyd * bxd) + std::abs(axd * cyd) +
+                                         std::abs(ayd * cxd) + std::abs(bxd * ayd) + std::abs(byd * axd));
+        if (!(w0 >= 0 && w1 >= 0 && w2 >= 0 && sum > noise)) {
+            // The accurate evaluation says the ray passes a hair outside (or is degenerate): keep the
+            // weights of the decision itself, which place the hit on the triangle (they are exact
+            // barycentrics of the sheared float triangle, whose area the decision found non-zero).
+            w0 = s * eu;
+            w1 = s * ev;
+            w2 = s * ew;
+            sum = s * det;
+        }
+        const T tt = T((w0 * az + w1 * bz + w2 * cz) * p.rcp_dz / sum);
+        if (!(tt >= p.tmin && tt <= tmax)) return false;
+        t = tt + T(0);  // -0 -> +0, so equal hits compare equal bit for bit
+        const double inv = 1.0 / sum;
+        u = T(w1 * inv);
+        v = T(w2 * inv);
+        return true;
+    }
+
+    /// a*b - c*d with one rounding of the exact result's magnitude (Kahan): the sign is exact and the
+    /// result is exactly 0 iff a*b == c*d.
+    static double diff_of_products(double a, double b, double c, double d) noexcept {
+        const double cd = c * d;
+        const double err = std::fma(-c, d, cd);   // cd - c*d, exact
+        const double dop = std::fma(a, b, -cd);   // a*b - cd, rounded once
+        return dop + err;
+    }
+};
+
+/// Möller & Trumbore 1997: edge vectors, one determinant, barycentrics by triple products. Fast, but
+/// rays through shared edges and vertices can slip between triangles (see tests/test_intersect.cpp).
+/// Front and back faces both hit; triangles parallel to the ray (det == 0) miss. Same interface as
+/// watertight.
+struct moller_trumbore {
+    template <class T>
+    struct prepared {
+        Vec3<T> org, dir;
+        T tmin;
+        explicit prepared(const Ray<T>& r) noexcept : org(r.org), dir(r.dir), tmin(detail::prepared_tmin(r)) {
+            detail::check_scalar<T>();
+        }
+    };
+
+    template <class T>
+    static DYNBVH_ALWAYS_INLINE bool test(const prepared<T>& p, const Triangle<T>& tri, T tmax, T& t, T& u, T& v) noexcept {
+        const Vec3<T> e1 = tri.p1 - tri.p0, e2 = tri.p2 - tri.p0;
+        const Vec3<T> pv = cross(p.dir, e2);
+        const T det = dot(e1, pv);
+        if (det == T(0)) return false;
+        const T inv = T(1) / det;
+        const Vec3<T> tv = p.org - tri.p0;
+        const T uu = dot(tv, pv) * inv;
+        if (!(uu >= T(0) && uu <= T(1))) return false;
+        const Vec3<T> qv = cross(tv, e1);
+        const T vv = dot(p.dir, qv) * inv;
+        if (!(vv >= T(0) && uu + vv <= T(1))) return false;
+        const T tt = dot(e2, qv) * inv;
+        if (!(tt >= p.tmin && tt <= tmax)) return false;
+        t = tt + T(0);  // -0 -> +0
+        u = uu;
+        v = vv;
+        return true;
+    }
+};
+
+} // namespace tri
+
+/// One ray against one triangle with triangle policy `Tri`: the hit (prim = 0) or no hit. For tests and
+/// one-off queries; traversal prepares the ray once instead.
+template <class Tri = tri::watertight, class T>
+Hit<T> intersect_triangle(const Triangle<T>& triangle, const Ray<T>& ray) noexcept {
+    Hit<T> h;
+    if (!traceable(ray)) return h;
+    const typename Tri::template prepared<T> p(ray);
+    if (Tri::test(p, triangle, ray.tmax, h.t, h.u, h.v)) h.prim = 0;
+    return h;
+}
+
+/// One ray against one box with box policy `Box`: whether it hits within [tmin, tmax].
+template <class Box = box::robust, class T>
+bool intersect_box(const AABB<T>& b, const Ray<T>& ray) noexcept {
+    if (!traceable(ray)) return false;
+    const typename Box::template prepared<T> p(ray);
+    T tentry;
+    return Box::test(p, b.min, b.max, ray.tmax, tentry);
+}
+
+} // namespace dynbvh

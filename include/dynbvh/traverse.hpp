@@ -1,0 +1,239 @@
+/// @file traverse.hpp
+/// Closest-hit and any-hit queries of one ray against any `Bvh`, with the box and triangle tests
+/// chosen at compile time:
+/// @code
+///   auto hit = dynbvh::intersect(bvh, tris, ray);                      // closest hit, robust tests
+///   bool occ = dynbvh::occluded<dynbvh::trace::fast>(bvh, tris, ray);  // any hit, fast tests
+///   using mixed = dynbvh::trace::policy<dynbvh::box::fast, dynbvh::tri::watertight>;
+/// @endcode
+/// Traversal is single-ray, near child first: at an inner node both children's boxes are tested, the
+/// ray descends into the nearer and pushes the farther (with its entry distance, so it is skipped once
+/// a closer hit is known) on a fixed stack of `max_depth` entries. The builders guarantee
+/// `bvh.depth <= max_depth`; a deeper tree, or one whose `depth` is wrong, is traced with a heap stack
+/// as large as the tree: never an overflow. The loop is compiled once per direction octant (the box
+/// test's near/far planes are chosen at compile time). No allocation for valid trees, no virtual
+/// calls. Rays that are not `traceable` (NaN or infinite origin or direction, zero direction, NaN or
+/// empty [tmin, tmax]) hit nothing.
+///
+/// Exactness: trace::robust is built so that `intersect` returns what `brute_force_intersect` returns
+/// (same t to the bit; the same triangle, or another hit at exactly the same t): the box test is
+/// conservative by a margin larger than the error of the triangle test's t. tests/test_traverse.cpp
+/// checks this on rays through vertices and edges, axis-parallel rays with +-0 components and grazing
+/// rays over overlapping coplanar triangles far from the origin (an empirical check, not a proof).
+/// box::fast may lose hits that only graze a box.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <span>
+#include <stdexcept>
+#include <string>
+#include <type_traits>
+#include <vector>
+
+#include "bvh.hpp"
+#include "intersect.hpp"
+
+namespace dynbvh {
+
+namespace trace {
+/// A traversal policy: one box test (namespace box) and one triangle test (namespace tri).
+template <class Box, class Tri>
+struct policy {
+    using box_test = Box;
+    using triangle_test = Tri;
+};
+/// Default: no hit lost to rounding, watertight triangles (Ize 2013 + Woop et al. 2013).
+using robust = policy<box::robust, tri::watertight>;
+/// Fastest: plain slab test + Möller–Trumbore.
+using fast = policy<box::fast, tri::moller_trumbore>;
+} // namespace trace
+
+namespace detail {
+
+template <class Index, class T>
+struct StackEntry {
+    Index node;
+    T tentry;  ///< entry distance of the node's box, to skip it once a closer hit is known
+};
+
+template <class NodeT, class Prim>
+void check_triangles(const Bvh<NodeT, Prim>& bvh, std::size_t given, const char* fn) {
+    if constexpr (!Bvh<NodeT, Prim>::precomputed) {
+        if (given < bvh.primitive_count)
+            throw std::invalid_argument(std::string("dynbvh::") + fn + ": the triangle span has " + std::to_string(given) +
+                                        " triangles but the BVH was built over " + std::to_string(bvh.primitive_count));
+    }
+}
+
+/// The one traversal loop, for one ray direction octant `Oct` (box tests without run-time sign
+/// selects). `AnyHit` stops at the first hit. Returns false when the stack of `cap` entries would
+/// overflow (only possible for a tree whose `depth` field understates its depth); `hit` is then
+/// meaningless and the caller retries with a stack that cannot overflow.
+template <class Policy, bool AnyHit, int Oct, class NodeT, class Prim>
+bool traverse_octant(const Bvh<NodeT, Prim>& bvh, std::span<const Triangle<typename NodeT::scalar_type>> tris,
+                     // by value: local copies the compiler can keep in registers (stores to the stack
+                     // could alias a reference)
+                     const typename Policy::box_test::template prepared<typename NodeT::scalar_type> pb,
+                     const typename Policy::triangle_test::template prepared<typename NodeT::scalar_type> pt,
+                     typename NodeT::scalar_type tmax, Hit<typename NodeT::scalar_type>& hit,
+                     StackEntry<typename NodeT::index_type, typename NodeT::scalar_type>* const stack, const std::size_t cap) {
+    using T = typename NodeT::scalar_type;
+    using Index = typename NodeT::index_type;
+    using Box = typename Policy::box_test;
+    using Tri = typename Policy::triangle_test;
+
+    const NodeT* const nodes = bvh.nodes.data();
+    const Index* const ids = bvh.prim_ids.data();
+    const Triangle<T>* const leaf_tris = Bvh<NodeT, Prim>::precomputed ? bvh.leaf_triangles.data() : tris.data();
+
+    std::size_t sp = 0;
+    std::size_t best_slot = ~std::size_t(0);
+    Index cur = 0;
+    for (;;) {
+        const NodeT& n = nodes[cur];
+        if (!n.is_leaf()) {
+            const Index c0 = n.index, c1 = n.index + 1;
+            const NodeT& n0 = nodes[c0];
+            const NodeT& n1 = nodes[c1];
+            T d0, d1;
+            const bool h0 = Box::template test_octant<Oct>(pb, n0.min, n0.max, tmax, d0);
+            const bool h1 = Box::template test_octant<Oct>(pb, n1.min, n1.max, tmax, d1);
+            if (h0 && h1) {
+                if (sp == cap) [[unlikely]] return false;
+                const bool second = d1 < d0;
+                stack[sp++] = second ? StackEntry<Index, T>{c0, d0} : StackEntry<Index, T>{c1, d1};
+                cur = second ? c1 : c0;
+                continue;
+            }
+            if (h0 || h1) {
+                cur = h0 ? c0 : c1;
+                continue;
+            }
+        } else {
+            const std::size_t end = std::size_t(n.index) + std::size_t(n.count);
+            for (std::size_t slot = n.index; slot < end; ++slot) {
+                const Triangle<T>& tri = Bvh<NodeT, Prim>::precomputed ? leaf_tris[slot] : leaf_tris[ids[slot]];
+                T t, u, v;
+                if (Tri::test(pt, tri, tmax, t, u, v)) {
+                    hit.t = t;
+                    hit.u = u;
+                    hit.v = v;
+                    if constexpr (AnyHit) {
+                        hit.prim = static_cast<std::uint32_t>(ids[slot]);
+                        return true;
+                    } else {
+                        tmax = t;
+                        best_slot = slot;
+                    }
+                }
+            }
+        }
+        // Pop the next subtree that can still hold a closer hit.
+        for (;;) {
+            if (sp == 0) {
+                if (best_slot != ~std::size_t(0)) hit.prim = static_cast<std::uint32_t>(ids[best_slot]);
+                return true;
+            }
+            const StackEntry<Index, T> e = stack[--sp];
+            if (Box::before(e.tentry, tmax)) {
+                cur = e.node;
+                break;
+            }
+        }
+    }
+}
+
+template <class Policy, bool AnyHit, class NodeT, class Prim>
+Hit<typename NodeT::scalar_type> traverse(const Bvh<NodeT, Prim>& bvh,
+                                          std::span<const Triangle<typename NodeT::scalar_type>> tris,
+                                          const Ray<typename NodeT::scalar_type>& ray) {
+    using T = typename NodeT::scalar_type;
+    using Index = typename NodeT::index_type;
+    using Box = typename Policy::box_test;
+    using Tri = typename Policy::triangle_test;
+    using Entry = StackEntry<Index, T>;
+
+    if (bvh.nodes.empty() || !traceable(ray)) return {};
+    const typename Box::template prepared<T> pb(ray);
+    const typename Tri::template prepared<T> pt(ray);
+    T troot;
+    if (!Box::test(pb, bvh.nodes[0].min, bvh.nodes[0].max, ray.tmax, troot)) return {};
+
+    auto run = [&](Entry* stack, std::size_t cap, Hit<T>& hit) {
+        return dispatch_octant(pb.octant, [&](auto oct) {
+            return traverse_octant<Policy, AnyHit, decltype(oct)::value>(bvh, tris, pb, pt, ray.tmax, hit, stack, cap);
+        });
+    };
+    if (bvh.depth <= max_depth) {
+        Entry stack[max_depth];
+        Hit<T> hit;
+        if (run(stack, max_depth, hit)) [[likely]] return hit;
+    }
+    // A tree deeper than max_depth (or one whose depth field is wrong): a heap stack as large as the
+    // tree, which no traversal can overflow (each node is pushed at most once).
+    std::vector<Entry> heap(bvh.nodes.size());
+    Hit<T> hit;
+    run(heap.data(), heap.size(), hit);
+    return hit;
+}
+
+} // namespace detail
+
+/// Closest hit of `ray` in `bvh` with t in [ray.tmin, ray.tmax]: t, barycentrics (u, v) and the user's
+/// triangle index (`Hit::prim`, never a leaf slot or fragment); no hit when `prim == invalid_prim`
+/// (`if (hit)`). `tris` is the array the BVH was built over (unused for prim::precomputed; for
+/// prim::indexed a span shorter than `bvh.primitive_count` throws std::invalid_argument).
+/// Cost: O(visited nodes); no allocation unless `bvh.depth > max_depth`.
+template <class Policy = trace::robust, class NodeT, class Prim>
+Hit<typename NodeT::scalar_type> intersect(const Bvh<NodeT, Prim>& bvh,
+                                           std::span<const Triangle<typename NodeT::scalar_type>> tris,
+                                           const Ray<typename NodeT::scalar_type>& ray) {
+    detail::check_triangles(bvh, tris.size(), "intersect");
+    return detail::traverse<Policy, false>(bvh, tris, ray);
+}
+
+/// Whether anything blocks `ray` within [ray.tmin, ray.tmax] (shadow rays): stops at the first hit.
+template <class Policy = trace::robust, class NodeT, class Prim>
+bool occluded(const Bvh<NodeT, Prim>& bvh, std::span<const Triangle<typename NodeT::scalar_type>> tris,
+              const Ray<typename NodeT::scalar_type>& ray) {
+    detail::check_triangles(bvh, tris.size(), "occluded");
+    return static_cast<bool>(detail::traverse<Policy, true>(bvh, tris, ray));
+}
+
+/// Reference closest hit: every finite triangle is tested with `Policy`'s triangle test (O(n) per ray).
+/// Same interval and tie rule as `intersect` (a later triangle at exactly the same t replaces the earlier).
+/// Triangles with a NaN or infinite vertex are skipped, as the builders exclude them.
+template <class Policy = trace::robust, class T>
+Hit<T> brute_force_intersect(std::type_identity_t<std::span<const Triangle<T>>> tris, const Ray<T>& ray) {
+    using Tri = typename Policy::triangle_test;
+    Hit<T> hit;
+    if (!traceable(ray)) return hit;
+    const typename Tri::template prepared<T> pt(ray);
+    T tmax = ray.tmax;
+    for (std::size_t i = 0; i < tris.size(); ++i) {
+        if (!tris[i].is_finite()) continue;
+        T t, u, v;
+        if (Tri::test(pt, tris[i], tmax, t, u, v)) {
+            tmax = t;
+            hit = {t, u, v, static_cast<std::uint32_t>(i)};
+        }
+    }
+    return hit;
+}
+
+/// Reference any hit: whether some finite triangle is hit within [tmin, tmax] (O(n) per ray).
+template <class Policy = trace::robust, class T>
+bool brute_force_occluded(std::type_identity_t<std::span<const Triangle<T>>> tris, const Ray<T>& ray) {
+    using Tri = typename Policy::triangle_test;
+    if (!traceable(ray)) return false;
+    const typename Tri::template prepared<T> pt(ray);
+    for (const Triangle<T>& tri : tris) {
+        if (!tri.is_finite()) continue;
+        T t, u, v;
+        if (Tri::test(pt, tri, ray.tmax, t, u, v)) return true;
+    }
+    return false;
+}
+
+} // namespace dynbvh
