@@ -70,6 +70,7 @@ struct Polygon {
     T x[capacity], y[capacity], z[capacity];
     int n = 0;
     bool overflow = false;   ///< a corner was dropped (never in exact arithmetic); the box then falls back
+    bool rounded[3] = {false, false, false};   ///< a crossing point's coordinate on this axis was rounded
 
     Vec3<T> operator[](int k) const noexcept { return {x[k], y[k], z[k]}; }
     T coord(int k, int axis) const noexcept { return axis == 0 ? x[k] : (axis == 1 ? y[k] : z[k]); }
@@ -98,6 +99,7 @@ template <class T>
 void split_polygon(const Polygon<T>& in, int axis, T pos, Polygon<T>& lo, Polygon<T>& hi) noexcept {
     lo.n = hi.n = 0;
     lo.overflow = hi.overflow = in.overflow;
+    for (std::size_t c = 0; c < 3; ++c) lo.rounded[c] = hi.rounded[c] = in.rounded[c];
     for (int k = 0; k < in.n; ++k) {
         const int k1 = k + 1 == in.n ? 0 : k + 1;
         const Vec3<T> a = in[k];
@@ -108,6 +110,13 @@ void split_polygon(const Polygon<T>& in, int axis, T pos, Polygon<T>& lo, Polygo
             const T t = da / (da - db);
             Vec3<T> p = a + (in[k1] - a) * t;
             p[axis] = pos;
+            // Where the same crossing in long double differs, the exact one may lie outside the
+            // corners' box: conservative_bounds() then widens that axis.
+            const long double tl = (static_cast<long double>(in.coord(k, axis)) - pos) /
+                                   (static_cast<long double>(in.coord(k, axis)) - in.coord(k1, axis));
+            for (std::size_t c = 0; c < 3; ++c)
+                if (c != std::size_t(axis) && static_cast<long double>(p[c]) != a[c] + (static_cast<long double>(in[k1][c]) - a[c]) * tl)
+                    lo.rounded[c] = hi.rounded[c] = true;
             lo.push(p);
             hi.push(p);
         }
@@ -220,15 +229,18 @@ bool choose_plane(const AABB<T>& box, const morton::Quantizer<T>& q, int& axis, 
     return false;
 }
 
-/// `b` grown on every axis by 16 unit roundoffs of its largest coordinate magnitude there. Clipped
-/// corners are computed with a few roundings per cut, so the exact part of the triangle inside a cut
-/// can stick out of its corners' box by that much; without the margin a ray that hits the triangle
-/// next to a split plane can miss every fragment box (tests/test_robust_geometry.cpp, scenes far
-/// from the origin). Callers intersect the result with the cut, so it never leaves the parent box.
+/// The corners' box, grown on every axis where a crossing point was rounded by 16 unit roundoffs of
+/// the largest coordinate magnitude there. Crossing points carry a few roundings per cut, so the exact
+/// part of the triangle inside a cut can stick out of its corners' box by that much; without the
+/// margin a ray that hits the triangle next to a split plane can miss every fragment box
+/// (tests/test_robust_geometry.cpp, scenes far from the origin). Callers intersect the result with the
+/// cut, so it never leaves the parent box; exact crossings (hand-made cases) keep boxes tight.
 template <class T>
-AABB<T> conservative(AABB<T> b) noexcept {
+AABB<T> conservative_bounds(const Polygon<T>& poly) noexcept {
+    AABB<T> b = poly.bounds();
     constexpr T k = T(8) * std::numeric_limits<T>::epsilon();
     for (std::size_t a = 0; a < 3; ++a) {
+        if (!poly.rounded[a]) continue;
         const T m = k * std::max(std::abs(b.min[a]), std::abs(b.max[a]));
         b.min[a] -= m;
         b.max[a] += m;
@@ -242,6 +254,7 @@ template <class T>
 void initial_fragment(const Triangle<T>& tri, const AABB<T>& box, Polygon<T>& poly, AABB<T>& tight) noexcept {
     poly.n = 0;
     poly.overflow = false;
+    poly.rounded[0] = poly.rounded[1] = poly.rounded[2] = false;
     poly.push(tri.p0);
     poly.push(tri.p1);
     poly.push(tri.p2);
@@ -255,7 +268,7 @@ void initial_fragment(const Triangle<T>& tri, const AABB<T>& box, Polygon<T>& po
             poly = lo;
         }
     }
-    tight = intersection(conservative(poly.bounds()), box);
+    tight = intersection(conservative_bounds(poly), box);
     if (poly.n == 0 || poly.overflow || tight.is_empty()) tight = box;
 }
 
@@ -464,8 +477,8 @@ References<T> split(const References<T>& refs, std::span<const Triangle<T>> tris
                 AABB<T> lo_cut = t.box, hi_cut = t.box;
                 lo_cut.max[axis] = pos;
                 hi_cut.min[axis] = pos;
-                lo.box = intersection(detail::conservative(lo.poly.bounds()), lo_cut);
-                hi.box = intersection(detail::conservative(hi.poly.bounds()), hi_cut);
+                lo.box = intersection(detail::conservative_bounds(lo.poly), lo_cut);
+                hi.box = intersection(detail::conservative_bounds(hi.poly), hi_cut);
                 if (lo.poly.n == 0 || lo.poly.overflow || lo.box.is_empty()) lo.box = lo_cut;
                 if (hi.poly.n == 0 || hi.poly.overflow || hi.box.is_empty()) hi.box = hi_cut;
                 const auto longest = [](const AABB<T>& b) {
