@@ -4,16 +4,20 @@
 
 #include <doctest/doctest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <cstdlib>
 #include <filesystem>
+#include <limits>
 #include <numbers>
+#include <random>
 #include <string>
 #include <tuple>
 #include <vector>
 
 #include <dynbvh/bvh.hpp>
+#include <dynbvh/collapse.hpp>
 #include <dynbvh/executor.hpp>
 #include <dynbvh/validate.hpp>
 
@@ -117,6 +121,62 @@ template <class E> bool executor_selected() {
 /// Calls f(executor) for every executor this build has (and DYNBVH_TEST_EXECUTORS selects).
 template <class F> void for_each_executor(F&& f) {
     std::apply([&](auto... ex) { ((executor_selected<decltype(ex)>() ? (void)f(ex) : void()), ...); }, executors());
+}
+
+/// n small random triangles in the unit cube from std::mt19937 (the stream the builder tests were written
+/// against; libstdc++'s mt19937 and uniform_real_distribution<float> are fixed for this toolchain).
+inline std::vector<Trianglef> mt_soup(std::size_t n, std::uint32_t seed, float size = 0.02f) {
+    std::mt19937 rng(seed);
+    std::uniform_real_distribution<float> u(0.0f, 1.0f), v(-size, size);
+    std::vector<Trianglef> tris(n);
+    for (auto& t : tris) {
+        const Vec3f o{u(rng), u(rng), u(rng)};
+        t = {o, o + Vec3f{v(rng), v(rng), v(rng)}, o + Vec3f{v(rng), v(rng), v(rng)}};
+    }
+    return tris;
+}
+
+/// Checks the BinaryTree contract for n references: every inner node reached exactly once from the root,
+/// every reference a leaf exactly once (so no cycles, nothing unreachable), and the raw depth at most
+/// `depth_bound`. Returns the depth (edges).
+inline std::size_t check_topology(const BinaryTree& tree, std::size_t n,
+                                  std::size_t depth_bound = std::numeric_limits<std::size_t>::max()) {
+    if (n == 0) {
+        CHECK(tree.inner_count() == 0);
+        return 0;
+    }
+    if (n == 1) {
+        CHECK(tree.inner_count() == 0);
+        CHECK(tree.root == BinaryTree::leaf(0));
+        return 0;
+    }
+    REQUIRE(tree.inner_count() == n - 1);
+    REQUIRE(tree.right.size() == n - 1);
+    REQUIRE_FALSE(BinaryTree::is_leaf(tree.root));
+    std::vector<std::uint8_t> inner_seen(n - 1, 0), ref_seen(n, 0);
+    std::vector<std::pair<std::uint32_t, std::size_t>> stack{{tree.root, 0}};
+    std::size_t depth = 0, bad = 0;
+    while (!stack.empty()) {
+        const auto [id, d] = stack.back();
+        stack.pop_back();
+        depth = std::max(depth, d);
+        if (BinaryTree::is_leaf(id)) {
+            const std::uint32_t r = BinaryTree::ref_of(id);
+            if (r >= n || ref_seen[r]++) ++bad;
+            continue;
+        }
+        if (id >= n - 1 || inner_seen[id]++) {
+            ++bad;
+            continue;
+        }
+        stack.push_back({tree.left[id], d + 1});
+        stack.push_back({tree.right[id], d + 1});
+    }
+    CHECK_MESSAGE(bad == 0, bad, " references or inner nodes out of range or reached twice");
+    CHECK(std::count(inner_seen.begin(), inner_seen.end(), 1) == static_cast<std::ptrdiff_t>(n - 1));
+    CHECK(std::count(ref_seen.begin(), ref_seen.end(), 1) == static_cast<std::ptrdiff_t>(n));
+    CHECK(depth <= depth_bound);
+    return depth;
 }
 
 /// validate() as a string: empty when the tree is valid, else the reasons (for CHECK(... == "")).

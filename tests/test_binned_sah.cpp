@@ -14,64 +14,16 @@
 #include <random>
 #include <vector>
 
+#include "support.hpp"
+
 using namespace dynbvh;
 
 namespace {
 
+/// Raw binned-SAH trees must themselves stay within max_depth.
+std::size_t check_topology(const BinaryTree& tree, std::size_t n) { return test::check_topology(tree, n, max_depth); }
+
 using Tri = Triangle<float>;
-
-std::vector<Tri> soup(std::size_t n, std::uint32_t seed, float size = 0.02f) {
-    std::mt19937 rng(seed);
-    std::uniform_real_distribution<float> u(0.0f, 1.0f), v(-size, size);
-    std::vector<Tri> tris(n);
-    for (auto& t : tris) {
-        const Vec3f o{u(rng), u(rng), u(rng)};
-        t = {o, o + Vec3f{v(rng), v(rng), v(rng)}, o + Vec3f{v(rng), v(rng), v(rng)}};
-    }
-    return tris;
-}
-
-/// Walks the raw tree from the root: every inner node reached exactly once, every reference exactly
-/// once, depth within max_depth. Returns the depth (edges).
-std::uint32_t check_topology(const BinaryTree& tree, std::size_t n) {
-    if (n == 0) {
-        CHECK(tree.inner_count() == 0);
-        return 0;
-    }
-    if (n == 1) {
-        CHECK(tree.inner_count() == 0);
-        CHECK(tree.root == BinaryTree::leaf(0));
-        return 0;
-    }
-    REQUIRE(tree.inner_count() == n - 1);
-    REQUIRE(tree.right.size() == n - 1);
-    REQUIRE(!BinaryTree::is_leaf(tree.root));
-    std::vector<std::uint8_t> inner_seen(n - 1, 0), ref_seen(n, 0);
-    std::vector<std::pair<std::uint32_t, std::uint32_t>> stack{{tree.root, 0}};
-    std::uint32_t depth = 0;
-    std::size_t bad = 0;
-    while (!stack.empty()) {
-        const auto [id, d] = stack.back();
-        stack.pop_back();
-        depth = std::max(depth, d);
-        if (BinaryTree::is_leaf(id)) {
-            const std::uint32_t r = BinaryTree::ref_of(id);
-            if (r >= n || ref_seen[r]++) ++bad;
-            continue;
-        }
-        if (id >= n - 1 || inner_seen[id]++) {
-            ++bad;
-            continue;
-        }
-        stack.push_back({tree.left[id], d + 1});
-        stack.push_back({tree.right[id], d + 1});
-    }
-    CHECK_MESSAGE(bad == 0, bad, " references or inner nodes out of range or reached twice");
-    CHECK(std::count(inner_seen.begin(), inner_seen.end(), 1) == static_cast<std::ptrdiff_t>(n - 1));
-    CHECK(std::count(ref_seen.begin(), ref_seen.end(), 1) == static_cast<std::ptrdiff_t>(n));
-    CHECK(depth <= max_depth);
-    return depth;
-}
 
 template <class Exec = exec::serial>
 BinaryTree tree_of(const std::vector<Tri>& tris, const binned_sah::Config& cfg = {}, const Exec& ex = {}) {
@@ -91,7 +43,7 @@ void check_bvh(const Bvh<>& bvh, const std::vector<Tri>& tris) {
 } // namespace
 
 TEST_CASE("binned_sah: random soup, valid topology and final tree") {
-    const auto tris = soup(20000, 1);
+    const auto tris = test::mt_soup(20000, 1);
     tree_of(tris);
     check_bvh(binned_sah::build(tris, {}, exec::serial{}), tris);
     check_bvh(binned_sah::build(tris, {.bins = 2}, exec::serial{}), tris);
@@ -167,7 +119,7 @@ TEST_CASE("binned_sah: identical centroids split by index, balanced and fast") {
 }
 
 TEST_CASE("binned_sah: flat scene and exponentially spaced triangles stay within max_depth") {
-    auto flat = soup(10000, 3, 0.01f);
+    auto flat = test::mt_soup(10000, 3, 0.01f);
     for (auto& t : flat) t.p0.z = t.p1.z = t.p2.z = 0.0f;
     tree_of(flat);
     check_bvh(binned_sah::build(flat, {}, exec::serial{}), flat);
@@ -183,7 +135,7 @@ TEST_CASE("binned_sah: flat scene and exponentially spaced triangles stay within
 
 TEST_CASE("binned_sah: every executor builds the same tree") {
     // Large enough for many data-parallel top nodes (above max(4096, n / 128) references).
-    auto tris = soup(40000, 7);
+    auto tris = test::mt_soup(40000, 7);
     const std::vector<Tri> same(5000, tris[5]);
     tris.insert(tris.end(), same.begin(), same.end());
     const auto ref = tree_of(tris);
@@ -205,14 +157,14 @@ TEST_CASE("binned_sah: every executor builds the same tree") {
 }
 
 TEST_CASE("binned_sah: bad config is refused") {
-    const auto tris = soup(10, 2);
+    const auto tris = test::mt_soup(10, 2);
     const auto refs = make_references(std::span<const Tri>(tris), exec::serial{});
     CHECK_THROWS_AS(binned_sah::build_tree(refs, {.bins = 1}, exec::serial{}), std::invalid_argument);
     CHECK_THROWS_AS(binned_sah::build_tree(refs, {.bins = 0}, exec::serial{}), std::invalid_argument);
 }
 
 TEST_CASE("binned_sah: SAH at most LBVH's (and PLOC's ratio reported) on a random soup") {
-    const auto tris = soup(50000, 13, 0.03f);
+    const auto tris = test::mt_soup(50000, 13, 0.03f);
     const double b = sah(binned_sah::build(tris, {}, exec::serial{}));
     const double l = sah(lbvh::build(tris, {}, exec::serial{}));
     const double p5 = sah(ploc::build(tris, {.radius = 5}, exec::serial{}));

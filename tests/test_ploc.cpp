@@ -23,45 +23,9 @@ using namespace dynbvh;
 using test::flat_scene;
 using test::identical;
 using test::random_soup;
+using test::check_topology;
 
 namespace {
-
-/// Checks the BinaryTree contract for n references: every reference is a leaf exactly once, every inner
-/// node is reached exactly once from the root (so no cycles and nothing unreachable). Returns the depth.
-std::size_t check_topology(const BinaryTree& tree, std::size_t n) {
-    if (n == 0) {
-        CHECK(tree.inner_count() == 0);
-        return 0;
-    }
-    if (n == 1) {
-        CHECK(tree.inner_count() == 0);
-        CHECK(tree.root == BinaryTree::leaf(0));
-        return 0;
-    }
-    REQUIRE(tree.inner_count() == n - 1);
-    REQUIRE(tree.right.size() == n - 1);
-    REQUIRE_FALSE(BinaryTree::is_leaf(tree.root));
-    std::vector<std::uint8_t> inner_seen(n - 1, 0), leaf_seen(n, 0);
-    std::vector<std::pair<std::uint32_t, std::size_t>> stack{{tree.root, 0}};
-    std::size_t leaves = 0, depth = 0, bad = 0;
-    while (!stack.empty() && bad == 0) {
-        const auto [id, d] = stack.back();
-        stack.pop_back();
-        depth = std::max(depth, d);
-        if (BinaryTree::is_leaf(id)) {
-            const std::uint32_t ref = BinaryTree::ref_of(id);
-            if (ref >= n || leaf_seen[ref]++) ++bad;
-            else ++leaves;
-            continue;
-        }
-        if (id >= n - 1 || inner_seen[id]++) { ++bad; continue; }
-        stack.push_back({tree.left[id], d + 1});
-        stack.push_back({tree.right[id], d + 1});
-    }
-    CHECK(bad == 0);
-    CHECK(leaves == n);
-    return depth;
-}
 
 template <class Exec>
 BinaryTree tree_of(std::span<const Trianglef> tris, const ploc::Config& cfg, const Exec& ex) {

@@ -14,6 +14,8 @@
 #include <random>
 #include <vector>
 
+#include "support.hpp"
+
 using namespace dynbvh;
 
 namespace {
@@ -31,18 +33,6 @@ std::vector<Tri> diagonal_slivers(std::size_t n, std::uint32_t seed, float lengt
         const Vec3f d = normalize(Vec3f{1.0f + 0.2f * u(rng), 1.0f - 0.2f * u(rng), 1.0f + 0.1f * u(rng)}) * len;
         const Vec3f side = Vec3f{width * u(rng), -width, width * u(rng)};
         t = {o, o + d, o + d * 0.5f + side};
-    }
-    return tris;
-}
-
-/// Small random triangles in the unit cube.
-std::vector<Tri> soup(std::size_t n, std::uint32_t seed, float size = 0.02f) {
-    std::mt19937 rng(seed);
-    std::uniform_real_distribution<float> u(0.0f, 1.0f), v(-size, size);
-    std::vector<Tri> tris(n);
-    for (auto& t : tris) {
-        const Vec3f o{u(rng), u(rng), u(rng)};
-        t = {o, o + Vec3f{v(rng), v(rng), v(rng)}, o + Vec3f{v(rng), v(rng), v(rng)}};
     }
     return tris;
 }
@@ -180,7 +170,7 @@ TEST_CASE("presplit: bad beta is refused with a clear error") {
 
 TEST_CASE("presplit: the budget goes to the triangles that fit their boxes worst") {
     // 1000 small triangles and one huge diagonal one: nearly all 50 splits go to the big one.
-    auto tris = soup(1000, 21, 0.001f);
+    auto tris = test::mt_soup(1000, 21, 0.001f);
     tris.push_back({{0, 0, 0}, {1, 1, 1}, {0.5f, 0.5f, 0.52f}});
     const auto refs = make_references(std::span<const Tri>(tris), exec::serial{});
     const auto out = presplit::split(refs, std::span<const Tri>(tris), {.beta = 0.05f}, exec::serial{});
@@ -268,7 +258,7 @@ TEST_CASE("presplit: references already cut to part of their triangle are split 
 TEST_CASE("presplit: every executor produces identical fragments") {
     // Large enough for the parallel paths (blocked scan from 2^14 elements, loops from 1024).
     auto tris = diagonal_slivers(14000, 17);
-    const auto more = soup(6000, 18, 0.05f);
+    const auto more = test::mt_soup(6000, 18, 0.05f);
     tris.insert(tris.end(), more.begin(), more.end());
     const auto ref = split_with(tris, 0.05f, exec::serial{});
     CHECK(ref.size() == expected_fragments(tris.size(), 0.05f));
