@@ -32,9 +32,6 @@ namespace dynbvh::test {
 inline constexpr float finf = std::numeric_limits<float>::infinity();
 inline constexpr float fnan = std::numeric_limits<float>::quiet_NaN();
 
-/// True in the sanitizer runs (tools/test.sh and tools/tsan.sh set DYNBVH_SANITIZED): use smaller counts.
-inline bool sanitized() { return std::getenv("DYNBVH_SANITIZED") != nullptr; }
-
 /// A count from the environment variable `name` (a positive integer), else `fallback`.
 inline std::size_t env_count(const char* name, std::size_t fallback) {
     const char* s = std::getenv(name);

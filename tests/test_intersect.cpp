@@ -315,6 +315,22 @@ TEST_CASE_TEMPLATE("box tests: hits, misses, signed zeros, origins on faces, NaN
     const typename Box::template prepared<float> q(Rayf{{0.5f, 0.5f, 3}, {0, 0, -1}, 0, inf});
     REQUIRE(Box::test(q, b.min, b.max, inf, te));
     CHECK(te == 2.0f);
+    // Normal directions are not scaled.
+    CHECK(q.t_scale == 1.0f);
+    if constexpr (!std::is_same_v<Box, box::robust>) return;  // box::fast replaces components below 1e-30
+    // Subnormal direction components (1 / dir overflows): the ray is not taken as parallel to the axes.
+    const AABBf tiny{{1e-40f, 1e-40f, 1e-40f}, {2e-40f, 2e-40f, 2e-40f}};
+    const Rayf sub{{0, 0, 0}, {1e-41f, 1e-41f, 1e-41f}, 0, inf};
+    const typename Box::template prepared<float> s(sub);
+    CHECK(s.t_scale < 1.0f);
+    REQUIRE(Box::test(s, tiny.min, tiny.max, inf, te));
+    CHECK(te == doctest::Approx(1e-40f / 1e-41f).epsilon(1e-3));
+    CHECK_FALSE(Box::test(s, tiny.min, tiny.max, 9.0f, te));  // the box starts at t ~ 10
+    CHECK_FALSE(box_hit<Box>(tiny, Vec3f{0, 0, 0}, Vec3f{-1e-41f, 1e-41f, 1e-41f}));
+    // One subnormal component beside normal ones: the ray climbs 1e-41 per unit of t.
+    const AABBf slab{{0.5f, 0.5f, 0.9e-40f}, {1.5f, 1.5f, 1.1e-40f}};
+    CHECK(box_hit<Box>(slab, Vec3f{0, 0, 0}, Vec3f{0.1f, 0.1f, 1e-41f}));
+    CHECK_FALSE(box_hit<Box>(slab, Vec3f{0, 0, 0}, Vec3f{0.1f, 0.1f, 4e-41f}));
 }
 
 TEST_CASE("robust box never loses a triangle the watertight test hits (rays aimed at vertices)") {

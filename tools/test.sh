@@ -15,7 +15,7 @@ cmake --build build/test -j"$jobs"
 (cd build/test && ctest --output-on-failure -j"$jobs")
 
 echo "== dynbvh tests under AddressSanitizer + UndefinedBehaviorSanitizer =="
-cmake -S . -B build/asan -DCMAKE_BUILD_TYPE=Debug -DCMAKE_CXX_FLAGS_DEBUG="-O1 -g" -DDYNBVH_SANITIZE=ON \
+cmake -S . -B build/asan -DCMAKE_BUILD_TYPE=Debug -DCMAKE_CXX_FLAGS_DEBUG="-O0 -g1" -DDYNBVH_SANITIZE=ON \
   -DDYNBVH_BUILD_TESTS=ON -DDYNBVH_BUILD_BENCH=OFF -DDYNBVH_BUILD_EXAMPLES=OFF -DDYNBVH_WERROR=ON >/dev/null
 cmake --build build/asan -j"$jobs"
 (cd build/asan && ASAN_OPTIONS=detect_leaks=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \

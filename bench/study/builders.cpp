@@ -13,6 +13,7 @@
 #include <dynbvh/refit.hpp>
 #include <dynbvh/sah.hpp>
 #include <dynbvh/traverse.hpp>
+#include <dynbvh/wide.hpp>
 
 #include "options.hpp"
 
@@ -70,6 +71,7 @@ std::string BuilderSpec::name() const {
     if (fast_box) s += ":box=fast";
     if (fast_tri) s += ":tri=mt";
     if (precomputed) s += ":prim=pre";
+    if (!wide) s += ":wide=0";
     return s;
 }
 
@@ -134,6 +136,10 @@ BuilderSpec parse_builder(const std::string& spec) {
             if (!ours) reject();
             if (v != "pre" && v != "indexed") throw std::invalid_argument("builder '" + spec + "': prim must be pre or indexed");
             b.precomputed = v == "pre";
+        } else if (key == "wide") {
+            if (!ours) reject();
+            if (v != "0" && v != "1") throw std::invalid_argument("builder '" + spec + "': wide must be 0 or 1");
+            b.wide = v == "1";
         } else {
             reject();
         }
@@ -177,11 +183,19 @@ template <class Exec, class Prim>
 class DynAccel final : public Accel {
 public:
     using BvhT = Bvh<Node<>, Prim>;
+    using WideT = wide_bvh_of<BvhT>;
 
     DynAccel(const BuilderSpec& spec, const Exec& ex, const Backend& backend) : spec_(spec), ex_(ex), backend_(backend) {}
 
     void build(std::span<const Trianglef> tris) override {
         previous_ = std::move(bvh_);   // freed untimed in release_previous()
+        previous_wide_ = std::move(wide_);
+        build_binary(tris);
+        // The 4-wide tree traced when spec_.wide (timed as part of the build). The binary tree stays
+        // (refit and the SAH column use it).
+        if (spec_.wide) wide_ = make_wide(bvh_, ex_);
+    }
+    void build_binary(std::span<const Trianglef> tris) {
         const LeafConfig leaves{.max_leaf_size = spec_.max_leaf};
         switch (spec_.kind) {
             case Kind::lbvh:
@@ -213,7 +227,10 @@ public:
                 throw std::logic_error("DynAccel: not one of our builders");
         }
     }
-    void release_previous() override { previous_ = BvhT{}; }
+    void release_previous() override {
+        previous_ = BvhT{};
+        previous_wide_ = WideT{};
+    }
 
     void trace(std::span<const Trianglef> tris, const RayGen& gen, std::span<std::uint32_t> out) override {
         if (spec_.fast_box && spec_.fast_tri) run<trace::fast>(tris, gen, out);
@@ -222,11 +239,37 @@ public:
         else run<trace::robust>(tris, gen, out);
     }
     std::optional<double> sah() const override { return sah_cost(bvh_, SahConfig{.ct = 3, .ci = 2}, ex_); }
-    std::optional<std::size_t> memory_bytes() const override { return bvh_.memory_bytes(); }
+    /// The traced tree's bytes (the wide one when spec_.wide).
+    std::optional<std::size_t> memory_bytes() const override { return spec_.wide ? wide_.memory_bytes() : bvh_.memory_bytes(); }
+    /// Single-ray queries (effect rays) go through the same tree as trace().
+    Hitf intersect(std::span<const Trianglef> tris, const Rayf& r) const override {
+        return with_policy([&]<class Policy>() {
+            return spec_.wide ? dynbvh::intersect<Policy>(wide_, tris, r) : dynbvh::intersect<Policy>(bvh_, tris, r);
+        });
+    }
+    bool occluded(std::span<const Trianglef> tris, const Rayf& r) const override {
+        return with_policy([&]<class Policy>() {
+            return spec_.wide ? dynbvh::occluded<Policy>(wide_, tris, r) : dynbvh::occluded<Policy>(bvh_, tris, r);
+        });
+    }
 
 private:
+    /// f.template operator()<Policy>() with the spec's box and triangle tests (single-ray queries).
+    template <class F>
+    decltype(auto) with_policy(const F& f) const {
+        if (spec_.fast_box && spec_.fast_tri) return f.template operator()<trace::fast>();
+        if (spec_.fast_box) return f.template operator()<trace::policy<box::fast, tri::watertight>>();
+        if (spec_.fast_tri) return f.template operator()<trace::policy<box::robust, tri::moller_trumbore>>();
+        return f.template operator()<trace::robust>();
+    }
+
     template <class Policy>
     void run(std::span<const Trianglef> tris, const RayGen& gen, std::span<std::uint32_t> out) const {
+        if (spec_.wide) {
+            const WideT& wide = wide_;
+            trace_tiles(backend_, gen, out, [&](const Rayf& r) { return dynbvh::intersect<Policy>(wide, tris, r).prim; });
+            return;
+        }
         const BvhT& bvh = bvh_;
         trace_tiles(backend_, gen, out, [&](const Rayf& r) { return dynbvh::intersect<Policy>(bvh, tris, r).prim; });
     }
@@ -235,6 +278,7 @@ private:
     const Exec& ex_;
     const Backend& backend_;
     BvhT bvh_, previous_;
+    WideT wide_, previous_wide_;
 };
 
 #if defined(DYNBVH_STUDY_EMBREE)
@@ -253,6 +297,8 @@ public:
     }
     std::optional<double> sah() const override { return std::nullopt; }
     std::optional<std::size_t> memory_bytes() const override { return std::nullopt; }
+    Hitf intersect(std::span<const Trianglef>, const Rayf& r) const override { return bvh_.intersect(r); }
+    bool occluded(std::span<const Trianglef>, const Rayf& r) const override { return bvh_.occluded(r); }
 
 private:
     bench::EmbreeBvh bvh_;

@@ -7,9 +7,11 @@
 #include <memory>
 #include <optional>
 #include <span>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
+#include <dynbvh/ray.hpp>
 #include <dynbvh/triangle.hpp>
 
 #include "backend.hpp"
@@ -30,6 +32,8 @@ struct BuilderSpec {
     bool fast_box = false;         ///< box::fast instead of box::robust
     bool fast_tri = false;         ///< tri::moller_trumbore instead of tri::watertight
     bool precomputed = false;      ///< prim::precomputed instead of prim::indexed
+    bool wide = true;              ///< trace a 4-wide tree converted from the binary one (wide.hpp; the
+                                   ///< conversion is part of the timed build); wide=0: the binary traversal
 
     bool is_embree() const noexcept { return kind == Kind::embree_low || kind == Kind::embree_medium || kind == Kind::embree_refit; }
     /// Keeps a tree from frame to frame (refit, embree-refit).
@@ -68,6 +72,28 @@ public:
     virtual std::optional<double> sah() const = 0;
     /// Bytes of the current tree; none for Embree.
     virtual std::optional<std::size_t> memory_bytes() const = 0;
+    /// Closest hit of one ray in the current structure (`tris` = the frame last built; the renderer's
+    /// primary, reflection and refraction rays). Same tests as trace(). Throws std::logic_error when
+    /// a structure does not implement single rays.
+    virtual Hitf intersect(std::span<const Trianglef> tris, const Rayf& r) const {
+        (void)tris;
+        (void)r;
+        throw std::logic_error("Accel::intersect: not implemented for this builder");
+    }
+    /// Whether anything is hit in [r.tmin, r.tmax] (the renderer's shadow rays); stops at the first hit.
+    virtual bool occluded(std::span<const Trianglef> tris, const Rayf& r) const {
+        (void)tris;
+        (void)r;
+        throw std::logic_error("Accel::occluded: not implemented for this builder");
+    }
+};
+
+/// An Accel and its frame's triangles as a render::Tracer (bench/render/whitted.hpp).
+struct AccelTracer {
+    const Accel& accel;
+    std::span<const Trianglef> tris;
+    Hitf intersect(const Rayf& r) const { return accel.intersect(tris, r); }
+    bool occluded(const Rayf& r) const { return accel.occluded(tris, r); }
 };
 
 /// Makes the structure for `spec`, running on `backend` (kept by reference: it must outlive the Accel).

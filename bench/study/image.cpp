@@ -107,6 +107,17 @@ bool write_png(const std::string& path, int width, int height, std::span<const s
 #endif
 }
 
+void write_linear_png(const std::string& path, int width, int height, std::span<const Vec3f> linear) {
+    const std::size_t n = std::size_t(std::max(0, width)) * std::size_t(std::max(0, height));
+    std::vector<std::uint8_t> rgb(3 * n);
+    for (std::size_t i = 0; i < n && i < linear.size(); ++i) {
+        rgb[3 * i + 0] = std::uint8_t(std::lround(255 * to_srgb(linear[i].x)));
+        rgb[3 * i + 1] = std::uint8_t(std::lround(255 * to_srgb(linear[i].y)));
+        rgb[3 * i + 2] = std::uint8_t(std::lround(255 * to_srgb(linear[i].z)));
+    }
+    if (linear.size() < n || !write_png(path, width, height, rgb)) throw std::runtime_error("cannot write image " + path);
+}
+
 std::size_t render_png(const std::string& path, const io::Frame& f, const io::SceneInfo& info, const RayGen& gen,
                        std::span<const std::uint32_t> prims) {
     const int w = gen.width(), h = gen.height();

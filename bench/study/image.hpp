@@ -18,6 +18,10 @@ namespace dynbvh::study {
 std::size_t render_png(const std::string& path, const io::Frame& f, const io::SceneInfo& info, const RayGen& gen,
                        std::span<const std::uint32_t> prims);
 
+/// Writes linear RGB pixels (rows top to bottom; e.g. a render::Image) as an sRGB PNG, values clamped
+/// to [0, 1]. Throws std::runtime_error naming the file when it cannot be written.
+void write_linear_png(const std::string& path, int width, int height, std::span<const Vec3f> linear);
+
 /// Writes 8-bit RGB pixels (rows top to bottom) as PNG: stb_image_write when available, otherwise
 /// our own encoder (stored deflate blocks: larger files, no dependency). Returns false on failure.
 bool write_png(const std::string& path, int width, int height, std::span<const std::uint8_t> rgb);

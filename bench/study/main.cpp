@@ -48,6 +48,12 @@ int main(int argc, char** argv) {
             text += render_text(scenes_table(r.scenes));
             text += '\n';
             for (const auto& t : study_tables(r)) text += render_text(t) + "\n";
+            for (const auto& t : effects_tables(r)) text += render_text(t) + "\n";
+            if (const auto fx = effects_conclusions(r); !fx.empty()) {
+                text += "Effects\n";
+                for (const auto& c : fx) text += "  - " + c + "\n";
+                text += "\n";
+            }
             text += "Conclusions\n";
             for (const auto& c : study_conclusions(r)) text += "  - " + c + "\n";
             text += "\n";

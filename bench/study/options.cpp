@@ -62,7 +62,8 @@ Builders (--builders, comma separated; default: all available)
   embree-low, embree-medium, embree-refit (when built with Embree 3)
   Knobs after a colon: ploc:r=16, kbvh:beta=0.2, lbvh:bits=63, ploc:leaf=4, binned-sah:bins=16,
   ploc:tri=mt (Moller-Trumbore instead of watertight), ploc:box=fast (plain slab test),
-  ploc:prim=pre (leaf triangles copied into the tree), e.g. ploc:r=10:leaf=4
+  ploc:prim=pre (leaf triangles copied into the tree), ploc:wide=0 (trace the binary tree instead of
+  the 4-wide one converted from it), e.g. ploc:r=10:leaf=4
 
 Options
   --res WxH,...        resolutions (default 854x480,1920x1080,3840x2160)
@@ -77,6 +78,12 @@ Options
   --images N           frames rendered to PNG per scene (default 3; 0: none)
   --cache-mb N         keep generated frames in memory up to N MiB (default 2048)
   --no-warmup          skip the untimed warm-up build + trace per builder
+  --effects E          primary (default): one primary ray per pixel, the thesis's protocol;
+                       auto: after the primary trace, render every frame Whitted-style with the effects the
+                       scene calls for (shadow rays towards its lights, reflection rays from specular or
+                       transparent materials, refraction rays from transparent ones) and report rays and
+                       trace time per effect; the PNG renders then show those effects
+  --effects-depth N    most reflection/refraction bounces with --effects auto (default 5)
   --quick              every built-in scene at scale 0.1, all builders, 8 frames spread over each animation,
                        427x240 and 854x480, a small sweep on cloth-ball (3 repetitions): under 3 minutes on 2 cores
   --full               the thesis protocol: full scale, all frames, 3 resolutions, 10 repetitions
@@ -155,6 +162,14 @@ Options parse_options(int argc, char** argv) {
         else if (a == "--images") o.images = parse_number<std::size_t>(a, val());
         else if (a == "--cache-mb") o.cache_mb = parse_number<std::size_t>(a, val());
         else if (a == "--no-warmup") o.warmup = false;
+        else if (a == "--effects") {
+            const std::string e = val();
+            if (e != "auto" && e != "primary") throw std::invalid_argument("--effects must be auto or primary, not '" + e + "'");
+            o.effects = e == "auto";
+        } else if (a == "--effects-depth") {
+            o.effects_depth = parse_number<int>(a, val());
+            if (o.effects_depth < 0 || o.effects_depth > 64) throw std::invalid_argument("--effects-depth must be between 0 and 64");
+        }
         else if (a == "--quick") o.quick = true;
         else if (a == "--full") o.full = true;
         else if (a == "--sweep") o.sweep = true;

@@ -29,6 +29,8 @@ struct Options {
     bool sweep_small = false;                 ///< fewer sweep settings (used by --quick)
     int sweep_reps = 0;                       ///< repetitions of the sweep (0: --reps)
     bool quick = false, full = false;
+    bool effects = false;                     ///< --effects auto: also render shadows, reflections and refractions where the scene calls for them
+    int effects_depth = 5;                    ///< --effects-depth: most reflection/refraction bounces (render::Config::max_depth)
     bool warmup = true;                       ///< one untimed build + trace per builder before the timed runs
     std::string info;                         ///< --info SPEC: print the scene's description and exit
     bool help = false;

@@ -9,6 +9,22 @@ namespace dynbvh::study {
 
 namespace {
 
+/// {"rays": {"primary": n, ...}, "ms": {...}, "shade_ms": x, "depth": d}, every figure divided by `n`.
+void write_effects(JsonWriter& j, const EffectsRecord& e, double n) {
+    j.begin_object(true);
+    j.key("rays");
+    j.begin_object(true);
+    for (std::size_t k = 0; k < 4; ++k) j.kv(effect_kind_names[k], double(e.rays[k]) / n);
+    j.end_object();
+    j.key("ms");
+    j.begin_object(true);
+    for (std::size_t k = 0; k < 4; ++k) j.kv(effect_kind_names[k], e.ms[k] / n);
+    j.end_object();
+    j.kv("shade_ms", e.shade_ms / n);
+    j.kv("depth", e.depth);
+    j.end_object();
+}
+
 void write_records(JsonWriter& j, const std::vector<FrameRecord>& recs) {
     j.key("per_frame");
     j.begin_array();
@@ -22,6 +38,10 @@ void write_records(JsonWriter& j, const std::vector<FrameRecord>& recs) {
         j.kv("sah", f.sah);
         j.kv("memory_bytes", f.memory_bytes);
         j.kv("hits", f.hits);
+        if (f.effects) {
+            j.key("effects");
+            write_effects(j, *f.effects, 1);
+        }
         j.end_object();
     }
     j.end_array();
@@ -97,6 +117,8 @@ std::string study_json(const StudyResults& r) {
     j.kv("full", o.full);
     j.kv("sweep", o.sweep);
     j.kv("warmup", o.warmup);
+    j.kv("effects", o.effects ? "auto" : "primary");
+    j.kv("effects_depth", o.effects_depth);
     j.end_object();
     j.key("builders");
     j.begin_array(true);
@@ -117,6 +139,9 @@ std::string study_json(const StudyResults& r) {
         j.kv("rays_per_frame", g.res.rays());
         j.kv("reps", o.reps);
         write_summary(j, g.summary());
+        j.key("effects");   // means per frame of the records' effects, or null
+        if (const auto e = sum_effects(g.records); e && !g.records.empty()) write_effects(j, *e, double(g.records.size()));
+        else j.null();
         write_records(j, g.records);
         j.end_object();
     }
@@ -195,14 +220,19 @@ std::string csv_field(const std::string& s) {
 } // namespace
 
 std::string study_csv(const StudyResults& r) {
-    std::string o = "kind,scene,builder,group,width,height,rep,frame,triangles,build_ms,trace_ms,sah,memory_bytes,hits\n";
+    std::string o = "kind,scene,builder,group,width,height,rep,frame,triangles,build_ms,trace_ms,sah,memory_bytes,hits,"
+                    "rays_primary,rays_shadow,rays_reflection,rays_refraction,ms_primary,ms_shadow,ms_reflection,ms_refraction,"
+                    "ms_shade\n";
     auto row = [&](const char* kind, const std::string& scene, const std::string& builder, const std::string& group, Resolution res,
                    const FrameRecord& f) {
         o += std::string(kind) + "," + csv_field(scene) + "," + csv_field(builder) + "," + csv_field(group) + "," +
              std::to_string(res.width) + "," + std::to_string(res.height) + "," + std::to_string(f.rep) + "," + std::to_string(f.frame) +
              "," + std::to_string(f.triangles) + "," + json_number(f.build_ms) + "," + json_number(f.trace_ms) + "," +
              (f.sah ? json_number(*f.sah) : "") + "," + (f.memory_bytes ? std::to_string(*f.memory_bytes) : "") + "," +
-             std::to_string(f.hits) + "\n";
+             std::to_string(f.hits);
+        for (std::size_t k = 0; k < 4; ++k) o += "," + (f.effects ? std::to_string(f.effects->rays[k]) : std::string());
+        for (std::size_t k = 0; k < 4; ++k) o += "," + (f.effects ? json_number(f.effects->ms[k]) : std::string());
+        o += "," + (f.effects ? json_number(f.effects->shade_ms) : std::string()) + "\n";
     };
     for (const auto& g : r.groups)
         for (const auto& f : g.records) row("study", g.scene, g.builder, "", g.res, f);

@@ -13,14 +13,19 @@ namespace dynbvh::study {
 ///   "options": {...}, "scenes": [...], "builders": [...],
 ///   "results": [ { "scene", "builder", "width", "height", "rays_per_frame", "frames", "reps",
 ///                  "total_build_ms", "total_trace_ms", "mean_build_ms", "mean_trace_ms", "mrays_per_s",
-///                  "fps", "mean_sah", "mean_memory_bytes",
-///                  "per_frame": [ {"rep", "frame", "triangles", "build_ms", "trace_ms", "sah", "memory_bytes", "hits"} ] } ],
+///                  "fps", "mean_sah", "mean_memory_bytes", "effects",
+///                  "per_frame": [ {"rep", "frame", "triangles", "build_ms", "trace_ms", "sah", "memory_bytes", "hits",
+///                                  ["effects"]} ] } ],
 ///   "images": [...], "skipped": [...], "notices": [...], "sweep": {...} }
 /// fps = per_frame count / (sum of build_ms + trace_ms) * 1000; null where a figure does not exist (Embree SAH).
+/// "effects" (--effects auto; null or absent otherwise): {"rays": {"primary", "shadow", "reflection", "refraction"},
+/// "ms": {same kinds: tracing time}, "shade_ms", "depth"}; per frame, and in a result the mean per frame.
+/// trace_ms stays the study's own primary trace (the effects render runs after it, timed apart).
 std::string study_json(const StudyResults& r);
 
 /// One CSV row per measured frame (study and sweep): kind,scene,builder,group,width,height,rep,frame,
-/// triangles,build_ms,trace_ms,sah,memory_bytes,hits.
+/// triangles,build_ms,trace_ms,sah,memory_bytes,hits, then rays and ms per kind (primary, shadow, reflection,
+/// refraction) and ms_shade with --effects auto (empty otherwise).
 std::string study_csv(const StudyResults& r);
 
 /// Writes `text` to `path` (replacing it); throws std::runtime_error naming the file on failure.

@@ -6,6 +6,7 @@
 #include <filesystem>
 #include <limits>
 #include <map>
+#include <optional>
 #include <set>
 
 #include "crossover.hpp"
@@ -225,6 +226,79 @@ std::vector<std::string> study_conclusions(const StudyResults& r) {
     return out;
 }
 
+std::vector<std::string> effects_conclusions(const StudyResults& r) {
+    std::vector<std::string> out;
+    for (const auto& s : r.scenes) {
+        for (const auto& res : r.options.resolutions) {
+            struct Row {
+                std::string builder;
+                EffectsRecord e;
+                double n;
+                std::optional<double> sah;
+            };
+            std::vector<Row> rows;
+            for (const auto& b : r.builders) {
+                const GroupResult* g = find_group(r, s.name, b, res);
+                if (!g || g->records.empty()) continue;
+                if (const auto e = sum_effects(g->records)) rows.push_back({b, *e, double(g->records.size()), g->summary().mean_sah});
+            }
+            if (rows.empty()) continue;
+            const EffectsRecord& e0 = rows.front().e;
+            std::string sent = s.name + " at " + res.str() + " with effects: per frame " + format_rays(double(e0.rays[0]) / rows.front().n) +
+                               " primary, " + format_rays(double(e0.rays[1]) / rows.front().n) + " shadow, " +
+                               format_rays(double(e0.rays[2]) / rows.front().n) + " reflection and " +
+                               format_rays(double(e0.rays[3]) / rows.front().n) + " refraction rays";
+            if (e0.rays[1] + e0.rays[2] + e0.rays[3] == 0) {
+                out.push_back(sent + ": the scene calls for no secondary rays.");
+                continue;
+            }
+            sent += ". Tracing time per ray relative to the fastest builder:";
+            // Time per ray, not per frame: builders may differ by a few rays where closest hits tie.
+            for (std::size_t k = 0; k < 4; ++k) {
+                if (e0.rays[k] == 0) continue;
+                double best = std::numeric_limits<double>::infinity();
+                std::string best_name;
+                for (const auto& row : rows) {
+                    const double per = row.e.rays[k] ? row.e.ms[k] / double(row.e.rays[k]) : std::nan("");
+                    if (per < best) {
+                        best = per;
+                        best_name = row.builder;
+                    }
+                }
+                sent += std::string(k == 0 ? " " : "; ") + effect_kind_names[k] + " ";
+                bool first = true;
+                for (const auto& row : rows) {
+                    const double per = row.e.rays[k] ? row.e.ms[k] / double(row.e.rays[k]) : std::nan("");
+                    sent += (first ? "" : ", ") + row.builder + " " + ratio(per / best);
+                    first = false;
+                }
+            }
+            sent += ".";
+            out.push_back(sent);
+            // Does the better tree (lowest SAH) pay off more for secondary rays than for primary rays?
+            const Row* lo = nullptr;
+            const Row* hi = nullptr;
+            for (const auto& row : rows) {
+                if (!row.sah) continue;
+                if (!lo || *row.sah < *lo->sah) lo = &row;
+                if (!hi || *row.sah > *hi->sah) hi = &row;
+            }
+            const auto per_ray = [](const EffectsRecord& e, bool secondary) {
+                const double rays = secondary ? double(e.rays[1] + e.rays[2] + e.rays[3]) : double(e.rays[0]);
+                const double ms = secondary ? e.ms[1] + e.ms[2] + e.ms[3] : e.ms[0];
+                return rays > 0 ? ms / rays : std::nan("");
+            };
+            if (lo && hi && lo != hi) {
+                const double gp = per_ray(hi->e, false) / per_ray(lo->e, false), gs = per_ray(hi->e, true) / per_ray(lo->e, true);
+                out.push_back(s.name + " at " + res.str() + ": " + lo->builder + " (SAH " + fmt(*lo->sah) + ") traces primary rays " +
+                              ratio(gp) + " and secondary rays " + ratio(gs) + " as fast as " + hi->builder + " (SAH " + fmt(*hi->sah) +
+                              "): the better tree pays off " + (gs > gp ? "more" : "less") + " for the secondary rays.");
+            }
+        }
+    }
+    return out;
+}
+
 std::vector<std::string> sweep_conclusions(const StudyResults& r) {
     std::vector<std::string> out;
     for (const auto& s : r.sweep_scenes) {
@@ -422,13 +496,28 @@ std::string write_report(const StudyResults& r) {
             save("fig_crossover_" + safe_file_name(s.name) + ".svg", svg_line_plot(p),
                  s.name + ": modelled frame time against rays per frame; the lowest line wins (Embree dashed).");
         }
+        if (const auto fx = effects_tables(r); !fx.empty()) {
+            md += "## Effects (--effects auto)\n\n";
+            md += "After its primary trace every frame is rendered Whitted-style (bench/render/whitted.hpp, depth " +
+                  std::to_string(r.options.effects_depth) +
+                  ") through the same structure: shadow rays towards the scene's lights, reflection rays from specular or "
+                  "transparent materials, refraction rays (Snell, exact Fresnel, total internal reflection) from transparent "
+                  "ones; each kind traced in its own timed passes. The renders below show these effects.\n\n";
+            for (const auto& t : fx) md += render_markdown(t);
+            for (const auto& c : effects_conclusions(r)) md += "- " + c + "\n";
+            md += "\n";
+        }
         md += "## Figures\n\n";
         for (const auto& [file, caption] : figures) md += "![" + caption + "](" + file + ")\n\n*" + caption + "*\n\n";
         figures.clear();
 
         if (!r.images.empty()) {
-            md += "## Renders\n\nPrimary-ray hits of a few frames per scene (material colour, n.l shading, no shadows; misses are "
-                  "background).\n\n";
+            if (r.options.effects)
+                md += "## Renders\n\nA few frames per scene rendered with the effects the scene calls for (Whitted: shadows, "
+                      "reflection, refraction; depth " + std::to_string(r.options.effects_depth) + ").\n\n";
+            else
+                md += "## Renders\n\nPrimary-ray hits of a few frames per scene (material colour, n.l shading, no shadows; misses are "
+                      "background).\n\n";
             std::string last;
             for (const auto& im : r.images) {
                 if (im.scene != last) md += "\n**" + im.scene + "**\n\n";

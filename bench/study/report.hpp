@@ -12,6 +12,9 @@ namespace dynbvh::study {
 /// Sentences computed from the study's measurements (best builder per scene and resolution,
 /// crossovers, the thesis and Embree comparisons).
 std::vector<std::string> study_conclusions(const StudyResults& r);
+/// Sentences computed from --effects auto (per scene and resolution: rays per kind, each builder's
+/// tracing time per kind relative to the fastest, whether the better tree pays off more for secondary rays).
+std::vector<std::string> effects_conclusions(const StudyResults& r);
 /// Sentences computed from the sweep (per scene and knob).
 std::vector<std::string> sweep_conclusions(const StudyResults& r);
 

@@ -2,6 +2,8 @@
 // report) read: one FrameRecord per built and traced frame, grouped per scene x builder x resolution.
 #pragma once
 
+#include <algorithm>
+#include <array>
 #include <cstddef>
 #include <cstdint>
 #include <limits>
@@ -19,6 +21,21 @@ struct Resolution {
     friend bool operator==(const Resolution&, const Resolution&) = default;
 };
 
+/// What `--effects auto` measured on one frame: the Whitted renderer (bench/render/whitted.hpp) run
+/// after the study's own primary trace, over the same structure through single-ray queries.
+/// Index 0..3 = primary, shadow, reflection, refraction (render::RayKind).
+struct EffectsRecord {
+    std::array<std::uint64_t, 4> rays{};   ///< rays traced per kind
+    std::array<double, 4> ms{};            ///< tracing time per kind (each kind traced in its own passes)
+    double shade_ms = 0;                   ///< shading, ray generation and queues (same for every builder, roughly)
+    int depth = 0;                         ///< deepest bounce reached
+    std::uint64_t total_rays() const noexcept { return rays[0] + rays[1] + rays[2] + rays[3]; }
+    double total_ms() const noexcept { return ms[0] + ms[1] + ms[2] + ms[3]; }
+};
+
+/// Names of EffectsRecord's kinds, in index order.
+inline constexpr std::array<const char*, 4> effect_kind_names{"primary", "shadow", "reflection", "refraction"};
+
 /// One frame of one run: build it (timed), trace one ray per pixel (timed), then the untimed metrics.
 struct FrameRecord {
     std::uint32_t rep = 0;
@@ -29,6 +46,7 @@ struct FrameRecord {
     std::optional<double> sah;        ///< SAH cost (Ct = 3, Ci = 2); none for Embree
     std::optional<std::size_t> memory_bytes;   ///< Bvh::memory_bytes; none for Embree
     std::size_t hits = 0;             ///< pixels whose ray hit something
+    std::optional<EffectsRecord> effects;   ///< --effects auto only
 };
 
 /// Summary of a list of frame records (all repetitions together).
@@ -63,6 +81,22 @@ inline Summary summarize(const std::vector<FrameRecord>& recs, std::size_t rays_
     s.mrays_per_s = s.total_trace_ms > 0 ? double(rays_per_frame) * n / (s.total_trace_ms / 1000.0) / 1e6 : 0;
     if (all_sah) s.mean_sah = sah / n;
     if (all_mem) s.mean_memory_bytes = mem / n;
+    return s;
+}
+
+/// Sum of the records' effects; none when no record has them (--effects primary).
+inline std::optional<EffectsRecord> sum_effects(const std::vector<FrameRecord>& recs) {
+    std::optional<EffectsRecord> s;
+    for (const FrameRecord& r : recs) {
+        if (!r.effects) continue;
+        if (!s) s.emplace();
+        for (std::size_t k = 0; k < 4; ++k) {
+            s->rays[k] += r.effects->rays[k];
+            s->ms[k] += r.effects->ms[k];
+        }
+        s->shade_ms += r.effects->shade_ms;
+        s->depth = std::max(s->depth, r.effects->depth);
+    }
     return s;
 }
 

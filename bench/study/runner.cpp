@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <optional>
 #include <stdexcept>
 
 #include <dynbvh/io/frames.hpp>
@@ -65,7 +66,8 @@ const io::Frame& FrameSource::get(std::size_t k) {
 }
 
 void run_frames(FrameSource& src, const BuilderSpec& spec, const Backend& backend, Resolution res, std::uint32_t rep,
-                std::vector<FrameRecord>& out, Progress* progress, const std::string& label, const FrameHook& hook) {
+                std::vector<FrameRecord>& out, Progress* progress, const std::string& label, const FrameHook& hook,
+                EffectsSetup* effects) {
     using clock = std::chrono::steady_clock;
     auto accel = make_accel(spec, backend);
     std::vector<std::uint32_t> prims(res.rays());
@@ -90,6 +92,16 @@ void run_frames(FrameSource& src, const BuilderSpec& spec, const Backend& backen
         r.sah = accel->sah();
         r.memory_bytes = accel->memory_bytes();
         r.hits = std::size_t(std::count_if(prims.begin(), prims.end(), [](std::uint32_t p) { return p != invalid_prim; }));
+        if (effects) {
+            const render::Stats st = render::render(AccelTracer{*accel, tris}, render::scene_view(f, src.scene()), gen, effects->image,
+                                                    effects->config, backend);
+            EffectsRecord e;
+            e.rays = st.rays;
+            e.ms = st.trace_ms;
+            e.shade_ms = st.shade_ms;
+            e.depth = st.depth_reached;
+            r.effects = e;
+        }
         out.push_back(r);
         if (hook) hook(k, f, prims);
         if (progress) progress->advance(frame_weight(res.rays(), tris.size()), label);
@@ -227,6 +239,11 @@ StudyResults run_study(const Options& opt, const Backend& backend) {
             const std::size_t first_group = res.groups.size();
             for (const auto& r : opt.resolutions)
                 for (const auto& b : run_specs) res.groups.push_back({sum.name, b.name(), r, {}});
+            std::optional<EffectsSetup> fx;
+            if (opt.effects) {
+                fx.emplace();
+                fx->config.max_depth = opt.effects_depth;
+            }
             for (int rep = 0; rep < opt.reps; ++rep) {
                 for (std::size_t ri = 0; ri < opt.resolutions.size(); ++ri) {
                     const Resolution r = opt.resolutions[ri];
@@ -244,14 +261,21 @@ StudyResults run_study(const Options& opt, const Backend& backend) {
                                 char name[256];
                                 std::snprintf(name, sizeof name, "images/%s_%04u.png", safe_file_name(sum.name).c_str(), unsigned(im.frame));
                                 im.file = name;
-                                im.hit_pixels = render_png((std::filesystem::path(opt.out) / im.file).string(), f, scene.info(),
-                                                           RayGen(f.camera, r.width, r.height), prims);
+                                const std::string path = (std::filesystem::path(opt.out) / im.file).string();
+                                if (fx) {
+                                    write_linear_png(path, fx->image.width, fx->image.height, fx->image.pixels);
+                                    im.hit_pixels = std::size_t(std::count_if(prims.begin(), prims.end(),
+                                                                               [](std::uint32_t p) { return p != invalid_prim; }));
+                                } else {
+                                    im.hit_pixels = render_png(path, f, scene.info(), RayGen(f.camera, r.width, r.height), prims);
+                                }
                                 res.images.push_back(im);
                             };
                         }
                         const std::string label = sum.name + " " + g.builder + " " + r.str() +
                                                   (opt.reps > 1 ? " rep " + std::to_string(rep + 1) : "");
-                        run_frames(src, run_specs[bi], backend, r, std::uint32_t(rep), g.records, &progress, label, hook);
+                        run_frames(src, run_specs[bi], backend, r, std::uint32_t(rep), g.records, &progress, label, hook,
+                                   fx ? &*fx : nullptr);
                     }
                 }
             }

@@ -10,6 +10,7 @@
 
 #include <dynbvh/io/scene.hpp>
 
+#include "../render/whitted.hpp"
 #include "backend.hpp"
 #include "builders.hpp"
 #include "options.hpp"
@@ -49,6 +50,8 @@ public:
     std::uint32_t id(std::size_t k) const noexcept { return ids_[k]; }
     const io::Frame& get(std::size_t k);
     bool cached() const noexcept { return !cache_.empty(); }
+    /// The scene (materials, lights and, for BART, the background: for --effects auto).
+    const io::Scene& scene() const noexcept { return scene_; }
     std::size_t first_triangles() const noexcept { return first_triangles_; }
 
 private:
@@ -63,9 +66,19 @@ private:
 /// Called after every traced frame with the frame's position k, the frame and the hit triangles.
 using FrameHook = std::function<void(std::size_t k, const io::Frame& f, std::span<const std::uint32_t> prims)>;
 
-/// Runs `spec` over every frame of `src` at `res` and appends one record per frame.
+/// --effects auto: after each frame's primary trace, the frame is rendered Whitted-style
+/// (bench/render/whitted.hpp) through the same structure's single-ray queries; the counts and
+/// times per kind go into FrameRecord::effects (build_ms and trace_ms are not affected).
+struct EffectsSetup {
+    render::Config config;
+    render::Image image;   ///< the last frame's render (linear RGB): what the hook writes as PNG
+};
+
+/// Runs `spec` over every frame of `src` at `res` and appends one record per frame; with `effects`
+/// each frame is also rendered with secondary effects (see EffectsSetup) before `hook` is called.
 void run_frames(FrameSource& src, const BuilderSpec& spec, const Backend& backend, Resolution res, std::uint32_t rep,
-                std::vector<FrameRecord>& out, Progress* progress, const std::string& label, const FrameHook& hook = {});
+                std::vector<FrameRecord>& out, Progress* progress, const std::string& label, const FrameHook& hook = {},
+                EffectsSetup* effects = nullptr);
 
 /// Work units of one frame for the progress bar (tracing dominates; building weighs in by triangles).
 inline double frame_weight(std::size_t rays, std::size_t triangles) { return double(rays) + 8.0 * double(triangles); }

@@ -32,6 +32,8 @@ std::vector<SweepSetting> sweep_settings(bool small, bool embree) {
     add("box test", "fast + Moller-Trumbore", "ploc:box=fast:tri=mt", false);
     add("leaf triangles", "indexed", "ploc", false);
     add("leaf triangles", "precomputed", "ploc:prim=pre", false);
+    add("tree layout", "4-wide", "ploc", false);
+    add("tree layout", "binary", "ploc:wide=0", false);
     for (const char* b : {"ploc", "lbvh", "kbvh", "binned-sah", "refit"}) add("builder", b, b, false);
     if (embree)
         for (const char* b : {"embree-low", "embree-medium", "embree-refit"}) add("builder", b, b, false);

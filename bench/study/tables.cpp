@@ -3,7 +3,9 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <limits>
 
+#include "crossover.hpp"
 #include "thesis.hpp"
 
 namespace dynbvh::study {
@@ -216,6 +218,53 @@ std::vector<Table> study_tables(const StudyResults& r) {
     v.push_back(all_res_table(r, "Table 5.5  Mean SAH cost per frame (Ct = 3, Ci = 2)", thesis::Metric::sah, true, false));
     v.push_back(per_res_table(r, "Trace speed, Mrays/s", std::nullopt, [](const Summary& s) { return s.mrays_per_s; }, th));
     v.push_back(all_res_table(r, "Tree memory, MiB (nodes + references)", thesis::Metric::sah, false, true));
+    return v;
+}
+
+std::vector<Table> effects_tables(const StudyResults& r) {
+    std::vector<Table> v;
+    for (const auto& s : r.scenes) {
+        Table t;
+        t.title = "Effects on " + s.name + ": mean per frame, rays and tracing time per kind (--effects auto, depth " +
+                  std::to_string(r.options.effects_depth) + ")";
+        t.header = {"resolution", "builder"};
+        for (const char* k : effect_kind_names) t.header.push_back(std::string(k) + " rays");
+        for (const char* k : effect_kind_names) t.header.push_back(std::string(k) + " ms");
+        t.header.push_back("shade ms");
+        t.header.push_back("secondary ms vs best");
+        for (const auto& res : r.options.resolutions) {
+            // The fastest builder's secondary (shadow + reflection + refraction) time at this resolution.
+            double best = std::numeric_limits<double>::infinity();
+            for (const auto& b : r.builders)
+                if (const GroupResult* g = find_group(r, s.name, b, res)) {
+                    if (const auto e = sum_effects(g->records)) best = std::min(best, e->ms[1] + e->ms[2] + e->ms[3]);
+                }
+            bool first = true;
+            for (const auto& b : r.builders) {
+                const GroupResult* g = find_group(r, s.name, b, res);
+                if (!g || g->records.empty()) continue;
+                const auto e = sum_effects(g->records);
+                if (!e) continue;
+                const double n = double(g->records.size());
+                std::vector<std::string> row{first ? res.str() : "", b};
+                first = false;
+                for (std::size_t k = 0; k < 4; ++k) row.push_back(format_rays(double(e->rays[k]) / n));
+                for (std::size_t k = 0; k < 4; ++k) row.push_back(e->rays[k] ? fmt(e->ms[k] / n) : "-");
+                row.push_back(fmt(e->shade_ms / n));
+                const double sec = e->ms[1] + e->ms[2] + e->ms[3];
+                char buf[32];
+                std::snprintf(buf, sizeof buf, "%.2fx", sec / best);
+                row.push_back(best > 0 && std::isfinite(best) ? std::string(buf) : "-");
+                t.rows.push_back(row);
+            }
+        }
+        if (t.rows.empty()) continue;
+        t.notes.push_back("Whitted renderer (bench/render/whitted.hpp) after the primary trace, single-ray closest-hit / any-hit "
+                          "queries through the same structure; each kind traced in its own passes and timed apart. Shadow rays only "
+                          "towards the scene's lights, reflection rays only from specular or transparent materials, refraction rays "
+                          "only from transparent ones. shade = shading, ray generation and queues (not tracing).");
+        v.push_back(t);
+    }
     return v;
 }
 

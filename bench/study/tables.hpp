@@ -27,6 +27,10 @@ std::string fmt(double x);
 Table scenes_table(const std::vector<SceneSummary>& scenes);
 /// Tables 5.2-5.5 plus Mrays/s and memory.
 std::vector<Table> study_tables(const StudyResults& r);
+/// --effects auto: one table per scene with effects: per resolution and builder, the mean rays per frame
+/// of each kind, the tracing time of each kind, the shading time, and the secondary rays' time relative
+/// to the fastest builder. Empty when nothing was rendered with effects.
+std::vector<Table> effects_tables(const StudyResults& r);
 /// One table per sweep scene: every setting's build, trace, SAH and hit differences.
 std::vector<Table> sweep_tables(const StudyResults& r);
 

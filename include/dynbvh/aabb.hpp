@@ -37,6 +37,14 @@ struct AABB {
         const Vec3<T> d = diagonal();
         return d.x * d.y + d.y * d.z + d.z * d.x;
     }
+    /// Half the surface area evaluated in `U` (double: extents near 1e-30 or 1e30 neither underflow
+    /// nor overflow in the products, as they would in float).
+    template <class U>
+    constexpr U half_area_in() const noexcept {
+        if (is_empty()) return U(0);
+        const U dx = U(max.x) - U(min.x), dy = U(max.y) - U(min.y), dz = U(max.z) - U(min.z);
+        return dx * dy + dy * dz + dz * dx;
+    }
     constexpr bool contains(const Vec3<T>& p) const noexcept {
         return min.x <= p.x && p.x <= max.x && min.y <= p.y && p.y <= max.y && min.z <= p.z && p.z <= max.z;
     }

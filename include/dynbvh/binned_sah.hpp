@@ -136,14 +136,14 @@ Split best_split(const Bins<T>& bins, const AABB<T>& centroids, std::vector<doub
         for (std::uint32_t b = k - 1; b > 0; --b) {
             acc.extend(box[b]);
             n += cnt[b];
-            right[b] = static_cast<double>(acc.half_area()) * static_cast<double>(n);
+            right[b] = acc.template half_area_in<double>() * static_cast<double>(n);
         }
         acc = AABB<T>{};
         n = 0;
         for (std::uint32_t b = 1; b < k; ++b) {
             acc.extend(box[b - 1]);
             n += cnt[b - 1];
-            const double cost = static_cast<double>(acc.half_area()) * static_cast<double>(n) + right[b];
+            const double cost = acc.template half_area_in<double>() * static_cast<double>(n) + right[b];
             if (cost < best_cost && n > 0 && n < total) {
                 best_cost = cost;
                 best = {a, b};
@@ -176,12 +176,12 @@ std::size_t sweep_split(Item<T>* items, std::size_t n, const AABB<T>& centroids)
         AABB<T> acc;
         for (std::size_t i = n - 1; i > 0; --i) {
             acc.extend(items[order[i]].box);
-            right[i] = static_cast<double>(acc.half_area()) * static_cast<double>(n - i);
+            right[i] = acc.template half_area_in<double>() * static_cast<double>(n - i);
         }
         acc = AABB<T>{};
         for (std::size_t i = 1; i < n; ++i) {
             acc.extend(items[order[i - 1]].box);
-            const double cost = static_cast<double>(acc.half_area()) * static_cast<double>(i) + right[i];
+            const double cost = acc.template half_area_in<double>() * static_cast<double>(i) + right[i];
             if (cost < best_cost) {
                 best_cost = cost;
                 best_pos = i;

@@ -6,6 +6,8 @@
 /// then a parallel top-down pass writes nodes in depth-first order (root at 0, siblings
 /// adjacent) and leaf references contiguously. Subtrees that would make the tree deeper
 /// than `max_depth` are rebuilt balanced (median splits), so traversal's fixed stack never overflows.
+/// Builders that create every node after its children (LBVH bottom-up, PLOC) apply the same
+/// CollapseRule while building and call detail::emit_from_info, skipping the bottom-up pass.
 #pragma once
 
 #include <algorithm>
@@ -51,7 +53,8 @@ Bvh<NodeT, Prim> emit_bvh(const BinaryTree& tree, const References<T>& refs, std
 
 namespace detail {
 
-/// Per raw inner node facts computed bottom-up by emit_bvh.
+/// Per raw node facts computed bottom-up (by emit_bvh, or by a builder that knows its
+/// nodes' children as it builds them, such as LBVH).
 template <class T>
 struct RawNodeInfo {
     Vec3<T> min, max;         ///< box (kept as two corners: no initialisation, written once)
@@ -63,14 +66,49 @@ struct RawNodeInfo {
     AABB<T> box() const noexcept { return {min, max}; }
 };
 
+/// The SAH leaf collapse rule of LeafConfig: a parent's facts from its children's facts.
+template <class T>
+struct CollapseRule {
+    float ct, ci;
+    std::uint32_t max_leaf;
+
+    explicit CollapseRule(const LeafConfig& cfg) noexcept
+        : ct(cfg.traversal_cost), ci(cfg.intersection_cost), max_leaf(std::max<std::uint32_t>(1, cfg.max_leaf_size)) {}
+
+    /// Facts of a single reference with box `b`.
+    void leaf(const AABB<T>& b, RawNodeInfo<T>& f) const noexcept {
+        f.min = b.min;
+        f.max = b.max;
+        f.cost = ci * float(b.half_area());
+        f.refs = 1;
+        f.size = 1;
+        f.height = 0;
+        f.collapsed = true;
+    }
+    /// Facts of the inner node over children `l` and `r`: collapsed to a leaf when that is cheaper
+    /// (leaf cost Ci*A*N against Ct*A + children) and N <= max_leaf.
+    void parent(const RawNodeInfo<T>& l, const RawNodeInfo<T>& r, RawNodeInfo<T>& f) const noexcept {
+        const AABB<T> box = merge(l.box(), r.box());
+        f.min = box.min;
+        f.max = box.max;
+        f.refs = l.refs + r.refs;
+        const float area = float(box.half_area());
+        const float split_cost = ct * area + l.cost + r.cost;
+        const float leaf_cost = ci * area * float(f.refs);
+        f.collapsed = f.refs <= max_leaf && leaf_cost <= split_cost;
+        if (f.collapsed) { f.cost = leaf_cost; f.size = 1; f.height = 0; }
+        else { f.cost = split_cost; f.size = 1 + l.size + r.size; f.height = 1 + std::max(l.height, r.height); }
+    }
+};
+
 /// Emission state shared by the top-down workers.
 template <class NodeT, class T>
 struct Emitter {
     const BinaryTree& tree;
     const References<T>& refs;
-    scratch_vector<RawNodeInfo<T>>& info;
-    std::vector<NodeT>& nodes;
-    std::vector<typename NodeT::index_type>& prim_ids;
+    std::span<const RawNodeInfo<T>> info;
+    decltype(Bvh<NodeT>::nodes)& nodes;
+    decltype(Bvh<NodeT>::prim_ids)& prim_ids;
     std::atomic<bool> deduplicated{false};   ///< some leaf held two fragments of one triangle
 
     struct Item {
@@ -216,19 +254,17 @@ void compact_references(Bvh<NodeT, Prim>& bvh) {
 
 } // namespace detail
 
-template <class NodeT, class Prim, class T, class Exec>
-Bvh<NodeT, Prim> emit_bvh(const BinaryTree& tree, const References<T>& refs, std::span<const Triangle<T>> tris,
-                          const LeafConfig& cfg, const Exec& ex) {
-    using Info = detail::RawNodeInfo<T>;
-    Bvh<NodeT, Prim> bvh;
-    bvh.primitive_count = refs.primitive_count;
-    bvh.excluded = refs.excluded;
-    const std::size_t n_refs = refs.size();
-    if (n_refs == 0) return bvh;
+namespace detail {
+
+/// Facts of every inner node of `tree`, bottom-up: starting at nodes whose children are both
+/// references, a walk goes up while the sibling subtree is finished (Karras 2012 style); index
+/// order keeps the walks local in memory. O(n), parallel.
+template <class T, class Exec>
+void compute_node_info(const BinaryTree& tree, const References<T>& refs, const LeafConfig& cfg,
+                       std::span<RawNodeInfo<T>> info, const Exec& ex) {
     const std::size_t n_inner = tree.inner_count();
     constexpr std::uint32_t none = std::numeric_limits<std::uint32_t>::max();
-    const auto max_leaf = std::max<std::uint32_t>(1, cfg.max_leaf_size);
-    const float ct = cfg.traversal_cost, ci = cfg.intersection_cost;
+    const CollapseRule<T> rule(cfg);
 
     // Parents of inner nodes; each node's arrival count starts at its number of reference children.
     scratch_vector<std::uint32_t> parent(n_inner);
@@ -242,37 +278,12 @@ Bvh<NodeT, Prim> emit_bvh(const BinaryTree& tree, const References<T>& refs, std
         }
         arrivals[i].store(leaves, std::memory_order_relaxed);
     });
-
-    // Bottom-up, starting at nodes whose children are both references and walking up while the
-    // sibling subtree is finished (Karras 2012 style); index order keeps the walks local in memory.
-    scratch_vector<Info> info(n_inner);
-    auto child_facts = [&](std::uint32_t c, AABB<T>& box, float& cost, std::uint32_t& cnt, std::uint32_t& size, std::uint32_t& h) {
-        if (BinaryTree::is_leaf(c)) {
-            box = refs.box[BinaryTree::ref_of(c)];
-            cost = ci * float(box.half_area());
-            cnt = 1; size = 1; h = 0;
-        } else {
-            const Info& f = info[c];
-            box = f.box(); cost = f.cost; cnt = f.refs; size = f.size; h = f.height;
-        }
-    };
     auto compute = [&](std::uint32_t p) {
-        AABB<T> bl, br;
-        float cl, cr;
-        std::uint32_t nl, nr, sl, sr, hl, hr;
-        child_facts(tree.left[p], bl, cl, nl, sl, hl);
-        child_facts(tree.right[p], br, cr, nr, sr, hr);
-        Info& f = info[p];
-        const AABB<T> box = merge(bl, br);
-        f.min = box.min;
-        f.max = box.max;
-        f.refs = nl + nr;
-        const float area = float(box.half_area());
-        const float split_cost = ct * area + cl + cr;
-        const float leaf_cost = ci * area * float(f.refs);
-        f.collapsed = f.refs <= max_leaf && leaf_cost <= split_cost;
-        if (f.collapsed) { f.cost = leaf_cost; f.size = 1; f.height = 0; }
-        else { f.cost = split_cost; f.size = 1 + sl + sr; f.height = 1 + std::max(hl, hr); }
+        RawNodeInfo<T> l, r;
+        const std::uint32_t a = tree.left[p], b = tree.right[p];
+        if (BinaryTree::is_leaf(a)) rule.leaf(refs.box[BinaryTree::ref_of(a)], l); else l = info[a];
+        if (BinaryTree::is_leaf(b)) rule.leaf(refs.box[BinaryTree::ref_of(b)], r); else r = info[b];
+        rule.parent(l, r, info[p]);
     };
     ex.for_each(0, n_inner, [&](std::size_t i) {
         if (!BinaryTree::is_leaf(tree.left[i]) || !BinaryTree::is_leaf(tree.right[i])) return;
@@ -283,6 +294,18 @@ Bvh<NodeT, Prim> emit_bvh(const BinaryTree& tree, const References<T>& refs, std
             compute(p);
         }
     });
+}
+
+/// emit_bvh's top-down half: writes the final layout from the facts of every inner node
+/// (computed by compute_node_info or by the builder itself). O(n), parallel.
+template <class NodeT, class Prim, class T, class Exec>
+Bvh<NodeT, Prim> emit_from_info(const BinaryTree& tree, const References<T>& refs, std::span<const Triangle<T>> tris,
+                                std::span<const RawNodeInfo<T>> info, const Exec& ex) {
+    Bvh<NodeT, Prim> bvh;
+    bvh.primitive_count = refs.primitive_count;
+    bvh.excluded = refs.excluded;
+    const std::size_t n_refs = refs.size();
+    if (n_refs == 0) return bvh;
 
     detail::Emitter<NodeT, T> em{tree, refs, info, bvh.nodes, bvh.prim_ids};
     const std::uint32_t root = tree.root;
@@ -322,6 +345,16 @@ Bvh<NodeT, Prim> emit_bvh(const BinaryTree& tree, const References<T>& refs, std
         (void)tris;
     }
     return bvh;
+}
+
+} // namespace detail
+
+template <class NodeT, class Prim, class T, class Exec>
+Bvh<NodeT, Prim> emit_bvh(const BinaryTree& tree, const References<T>& refs, std::span<const Triangle<T>> tris,
+                          const LeafConfig& cfg, const Exec& ex) {
+    scratch_vector<detail::RawNodeInfo<T>> info(refs.size() == 0 ? 0 : tree.inner_count());
+    if (refs.size() != 0) detail::compute_node_info(tree, refs, cfg, std::span<detail::RawNodeInfo<T>>(info), ex);
+    return detail::emit_from_info<NodeT, Prim>(tree, refs, tris, std::span<const detail::RawNodeInfo<T>>(info), ex);
 }
 
 } // namespace dynbvh

@@ -104,6 +104,29 @@ DYNBVH_ALWAYS_INLINE decltype(auto) dispatch_octant(int octant, F&& f) {
     }
 }
 
+/// The power of two 2^k by which box tests scale a ray's direction so that 1 / dir[a] stays finite for
+/// every non-zero component: k = 0 (no scaling) unless some |dir[a]| is so small (below about 2^-126
+/// for float, a subnormal) that its reciprocal would overflow to infinity and the axis would be taken
+/// as parallel. k is limited so that the largest component does not overflow. Scaling by a power of
+/// two is exact, so box distances are the ray's t times 2^-k (exact while that product is normal).
+template <class T>
+inline int direction_scale_exponent(const Vec3<T>& dir) noexcept {
+    const T ax = std::abs(dir.x), ay = std::abs(dir.y), az = std::abs(dir.z);
+    constexpr T smallest = std::numeric_limits<T>::min();
+    // the common case, without a libm call: no component in (0, smallest)
+    if (!((ax > T(0) && ax < smallest) || (ay > T(0) && ay < smallest) || (az > T(0) && az < smallest))) return 0;
+    constexpr int lowest = std::numeric_limits<T>::min_exponent - 1;  // ilogb of the smallest normal
+    constexpr int highest = std::numeric_limits<T>::max_exponent - 2;  // keeps 1 / dir above the smallest normal
+    int lo = std::numeric_limits<int>::max(), hi = std::numeric_limits<int>::min();
+    for (const T d : {ax, ay, az}) {
+        if (d == T(0) || !std::isfinite(d)) continue;
+        const int e = std::ilogb(d);
+        lo = std::min(lo, e);
+        hi = std::max(hi, e);
+    }
+    return std::max(0, std::min(lowest - lo, highest - hi));
+}
+
 template <class T>
 inline void check_scalar() noexcept {
     static_assert(std::is_same_v<T, float> || std::is_same_v<T, double>, "dynbvh: scalar must be float or double");
@@ -123,18 +146,28 @@ namespace box {
 /// Interface shared by every box policy: `prepared<T>(ray)`; `test(p, lo, hi, tmax, tentry)`;
 /// `test_octant<Oct>(p, ...)`, the same with the ray's direction octant (`p.octant`, bit a set when
 /// dir[a] has its sign bit set) known at compile time, which traversal uses; `before(tentry, tmax)`.
+/// `test` takes and gives distances in the ray's t; `test_octant` and `before` work in box units,
+/// t * `p.t_scale`, where t_scale = 2^-k is 1 except for rays with a component so small that its
+/// reciprocal would overflow (see detail::direction_scale_exponent): traversal converts tmax once per
+/// hit, not once per box.
 struct robust {
     template <class T>
     struct prepared {
         Vec3<T> org;       ///< ray origin
-        Vec3<T> inv;       ///< 1 / dir, correctly rounded (+-inf for +-0)
-        T tmin;            ///< ray.tmin (NaN for a ray that is not traceable: then nothing is hit)
+        Vec3<T> inv;       ///< 1 / (dir 2^k), correctly rounded (+-inf for +-0)
+        T tmin;            ///< ray.tmin * t_scale (NaN for a ray that is not traceable: then nothing is hit)
+        T t_scale = 1;     ///< 2^-k: box distances are the ray's t times this (1 for all but subnormal directions)
         int octant = 0;    ///< bit a set when dir[a] has its sign bit set (so -0 counts as negative)
 
         explicit prepared(const Ray<T>& r) noexcept : org(r.org), tmin(detail::prepared_tmin(r)) {
             detail::check_scalar<T>();
+            const int k = detail::direction_scale_exponent(r.dir);
+            if (k != 0) [[unlikely]] {  // (ldexp is a libm call: kept off the common path)
+                t_scale = std::ldexp(T(1), -k);
+                tmin *= t_scale;
+            }
             for (std::size_t a = 0; a < 3; ++a) {
-                inv[a] = T(1) / r.dir[a];  // IEEE: 1/+0 = +inf, 1/-0 = -inf
+                inv[a] = T(1) / (k != 0 ? std::ldexp(r.dir[a], k) : r.dir[a]);  // IEEE: 1/+0 = +inf, 1/-0 = -inf
                 octant |= std::signbit(r.dir[a]) ? 1 << a : 0;
             }
         }
@@ -165,10 +198,13 @@ struct robust {
         return tn <= tf;  // tf is NaN (a miss) only for -inf exits: the ray is parallel to and outside a slab
     }
 
-    /// `test_octant` with the octant read at run time.
+    /// `test_octant` with the octant read at run time, `tmax` and `tentry` in the ray's t.
     template <class T>
     static bool test(const prepared<T>& p, const Vec3<T>& lo, const Vec3<T>& hi, T tmax, T& tentry) noexcept {
-        return detail::dispatch_octant(p.octant, [&](auto oct) { return test_octant<decltype(oct)::value>(p, lo, hi, tmax, tentry); });
+        const bool h = detail::dispatch_octant(
+            p.octant, [&](auto oct) { return test_octant<decltype(oct)::value>(p, lo, hi, tmax * p.t_scale, tentry); });
+        tentry /= p.t_scale;
+        return h;
     }
 
     /// Whether a box entered at `tentry` can still hold a hit closer than `tmax` (used to skip stale
@@ -179,16 +215,18 @@ struct robust {
 
 /// Plain slab test with precomputed inverse direction and origin * inverse (one multiply-add per
 /// slab). May report a miss for a box the ray only grazes within rounding error, so a triangle lying
-/// in a box face or hit exactly at a vertex can be lost. Zero direction components are replaced by
-/// +-1e-30 (float) / +-1e-300 (double) with their sign, so no NaN arises from 0 * inf; a ray parallel
+/// in a box face or hit exactly at a vertex can be lost. Direction components smaller than 1e-30
+/// (float) / 1e-300 (double) in magnitude, zeros included, are replaced by +-1e-30 / +-1e-300 with
+/// their sign, so no NaN arises from 0 * inf (rays in scenes smaller than that need box::robust); a ray parallel
 /// to an axis and lying exactly in the box's max face on that axis (with +0) or min face (with -0)
 /// therefore counts as leaving the box. Use box::robust where that matters. Same interface as robust.
 struct fast {
     template <class T>
     struct prepared {
-        Vec3<T> inv;       ///< 1 / dir (zero components replaced, see above)
+        Vec3<T> inv;       ///< 1 / dir (tiny components replaced, see above)
         Vec3<T> org_inv;   ///< org * inv
         T tmin;
+        static constexpr T t_scale = 1;  ///< never scaled (see box::robust): tiny components are replaced instead
         int octant = 0;
 
         explicit prepared(const Ray<T>& r) noexcept : tmin(detail::prepared_tmin(r)) {

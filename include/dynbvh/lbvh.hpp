@@ -1,16 +1,24 @@
 /// @file lbvh.hpp
-/// LBVH: the linear BVH of Lauterbach et al. 2009 in the fully parallel radix-tree form of
-/// Karras 2012, "Maximizing Parallelism in the Construction of BVHs, Octrees, and k-d Trees".
-/// Steps: Morton codes of reference centres -> radix sort -> every inner node i of the
-/// radix tree finds its key range and split independently -> boxes bottom-up and SAH leaf
-/// collapse (collapse.hpp). Equal codes are told apart by appending the sorted index to the
-/// key ("index augmentation"), so duplicates form a balanced subtree instead of a chain.
+/// LBVH: the linear BVH of Lauterbach et al. 2009 as a binary radix tree over the sorted Morton
+/// codes (Karras 2012, "Maximizing Parallelism in the Construction of BVHs, Octrees, and k-d Trees"),
+/// built bottom-up as in Apetrei 2014, "Fast and Simple Agglomerative LBVH Construction": every
+/// leaf walks up, each node knowing its key range [lo, hi]; its parent is the neighbouring node
+/// that shares the longer key prefix (split at hi, or at lo - 1), and the second child to arrive
+/// at a parent carries on. The walk computes each node's box and SAH leaf collapse on the way
+/// (collapse.hpp's CollapseRule), so no separate bottom-up pass is needed before emission.
+/// Equal codes are told apart by appending the sorted index to the key ("index augmentation"),
+/// so duplicates form a balanced subtree instead of a chain. Inner node ids are split positions
+/// (node p separates sorted references p and p + 1), so a node's id lies between its leaves.
 /// Fastest builder, lowest quality. O(n) work per step, fully parallel.
 #pragma once
 
+#include <atomic>
 #include <bit>
 #include <cstdint>
+#include <limits>
 #include <span>
+#include <stdexcept>
+#include <string>
 #include <vector>
 
 #include "bvh.hpp"
@@ -18,6 +26,7 @@
 #include "executor.hpp"
 #include "morton.hpp"
 #include "references.hpp"
+#include "scratch.hpp"
 
 namespace dynbvh::lbvh {
 
@@ -29,59 +38,87 @@ struct Config {
 
 namespace detail {
 
-/// Karras's radix tree over sorted keys. Inner node i covers a key range with i at one end.
-template <class Key, class Exec>
-BinaryTree radix_tree(std::span<const Key> keys, const Exec& ex) {
-    const auto n = static_cast<std::int64_t>(keys.size());
+using dynbvh::detail::CollapseRule;
+using dynbvh::detail::RawNodeInfo;
+
+/// How far apart sorted keys i and i + 1 are, as one integer: smaller = longer common prefix of
+/// the index-augmented keys (key bits, then position bits). For 32-bit keys that is the XOR of the
+/// augmented keys itself; 64-bit keys that differ are moved above every equal pair instead. Only
+/// the order of the two ends of one key range matters, and those never share a prefix length
+/// (Apetrei 2014), so any order that agrees with the prefix lengths will do.
+template <class Key>
+inline std::uint64_t split_distance(const Key* keys, std::size_t i) noexcept {
+    const Key x = keys[i] ^ keys[i + 1];
+    const std::uint64_t pos = std::uint32_t(i ^ (i + 1));
+    if constexpr (sizeof(Key) == 4) return (std::uint64_t(x) << 32) | pos;
+    else return x != 0 ? (std::uint64_t(x) | (std::uint64_t(1) << 63)) : pos;   // codes use 63 bits
+}
+
+/// The radix tree over sorted `keys`, built bottom-up; when `info` is given (size n - 1), also the
+/// facts of every inner node under `rule`, from the boxes of the (sorted) references `refs`.
+template <class Key, class T, class Exec>
+BinaryTree radix_tree(std::span<const Key> keys, const References<T>& refs, const CollapseRule<T>& rule,
+                      RawNodeInfo<T>* info, const Exec& ex) {
+    const std::size_t n = keys.size();
     BinaryTree tree;
     if (n == 0) return tree;
+    if (n >= BinaryTree::leaf_flag)
+        throw std::length_error("dynbvh::lbvh: " + std::to_string(n) + " references exceed the limit of 2^31 - 1");
     if (n == 1) { tree.root = BinaryTree::leaf(0); return tree; }
-    tree.left.resize(std::size_t(n - 1));
-    tree.right.resize(std::size_t(n - 1));
-    tree.root = 0;
-    // Length of the common prefix of keys i and j (index-augmented), -1 when j is out of range.
-    auto delta = [&](std::int64_t i, std::int64_t j) -> int {
-        if (j < 0 || j >= n) return -1;
-        const Key a = keys[std::size_t(i)], b = keys[std::size_t(j)];
-        if (a != b) return std::countl_zero(Key(a ^ b));
-        return int(sizeof(Key) * 8) + std::countl_zero(std::uint64_t(i ^ j));
-    };
-    ex.for_each(0, std::size_t(n - 1), [&](std::size_t ui) {
-        const auto i = static_cast<std::int64_t>(ui);
-        const int d = delta(i, i + 1) > delta(i, i - 1) ? 1 : -1;
-        const int delta_min = delta(i, i - d);
-        std::int64_t lmax = 2;
-        while (delta(i, i + lmax * d) > delta_min) lmax *= 2;
-        std::int64_t l = 0;
-        for (std::int64_t t = lmax / 2; t >= 1; t /= 2)
-            if (delta(i, i + (l + t) * d) > delta_min) l += t;
-        const std::int64_t j = i + l * d;
-        const int delta_node = delta(i, j);
-        std::int64_t s = 0;
-        for (std::int64_t t = (l + 1) / 2;; t = (t + 1) / 2) {
-            if (delta(i, i + (s + t) * d) > delta_node) s += t;
-            if (t == 1) break;
+    tree.left.resize(n - 1);
+    tree.right.resize(n - 1);
+    constexpr std::uint32_t none = std::numeric_limits<std::uint32_t>::max();
+    // The far end of the range of the first child to arrive at each node (none: no child yet).
+    scratch_vector<std::atomic<std::uint32_t>> other(n - 1);
+    ex.for_each(0, n - 1, [&](std::size_t i) { other[i].store(none, std::memory_order_relaxed); });
+    const Key* k = keys.data();
+    const auto last = static_cast<std::uint32_t>(n - 1);
+    std::uint32_t root = 0;
+    ex.for_each(0, n, [&](std::size_t i) {
+        std::uint32_t lo = std::uint32_t(i), hi = lo, node = BinaryTree::leaf(lo);
+        for (;;) {
+            // Parent: split at hi (we are its left child) or at lo - 1 (its right child).
+            const bool left_child = lo == 0 || (hi != last && split_distance(k, hi) < split_distance(k, lo - 1));
+            const std::uint32_t p = left_child ? hi : lo - 1;
+            (left_child ? tree.left : tree.right)[p] = node;
+            const std::uint32_t far = other[p].exchange(left_child ? lo : hi, std::memory_order_acq_rel);
+            if (far == none) return;   // the sibling is not finished: it carries on
+            (left_child ? hi : lo) = far;
+            if (info) {
+                RawNodeInfo<T> l, r;
+                const std::uint32_t a = tree.left[p], b = tree.right[p];
+                if (BinaryTree::is_leaf(a)) rule.leaf(refs.box[BinaryTree::ref_of(a)], l); else l = info[a];
+                if (BinaryTree::is_leaf(b)) rule.leaf(refs.box[BinaryTree::ref_of(b)], r); else r = info[b];
+                rule.parent(l, r, info[p]);
+            }
+            node = p;
+            if (lo == 0 && hi == last) { root = p; return; }
         }
-        const std::int64_t gamma = i + s * d + std::min(d, 0);
-        const std::int64_t lo = std::min(i, j), hi = std::max(i, j);
-        tree.left[ui] = lo == gamma ? BinaryTree::leaf(std::uint32_t(gamma)) : std::uint32_t(gamma);
-        tree.right[ui] = hi == gamma + 1 ? BinaryTree::leaf(std::uint32_t(gamma + 1)) : std::uint32_t(gamma + 1);
     });
+    tree.root = root;
     return tree;
+}
+
+/// Sorts `refs` along the Morton curve and builds the radix tree (and the node facts, see radix_tree).
+template <class T, class Exec>
+BinaryTree build_tree(References<T>& refs, const Config& cfg, RawNodeInfo<T>* info, const Exec& ex) {
+    const CollapseRule<T> rule(cfg.leaves);
+    if (cfg.morton_bits > 30) {
+        const auto keys = morton::sort_references<std::uint64_t>(refs, ex);
+        return radix_tree<std::uint64_t>(std::span<const std::uint64_t>(keys), refs, rule, info, ex);
+    }
+    const auto keys = morton::sort_references<std::uint32_t>(refs, ex);
+    return radix_tree<std::uint32_t>(std::span<const std::uint32_t>(keys), refs, rule, info, ex);
 }
 
 } // namespace detail
 
 /// Raw LBVH topology over `refs` (see BinaryTree). Reorders `refs` into Morton order; the
-/// tree's leaf ids index the reordered refs. Used by build() and by kbvh (presplit + LBVH).
+/// tree's leaf ids index the reordered refs. Used by kbvh (presplit + LBVH).
+/// Throws std::length_error beyond 2^31 - 1 references.
 template <class T, class Exec>
 BinaryTree build_tree(References<T>& refs, const Config& cfg, const Exec& ex) {
-    if (cfg.morton_bits > 30) {
-        const auto keys = morton::sort_references<std::uint64_t>(refs, ex);
-        return detail::radix_tree<std::uint64_t>(std::span<const std::uint64_t>(keys), ex);
-    }
-    const auto keys = morton::sort_references<std::uint32_t>(refs, ex);
-    return detail::radix_tree<std::uint32_t>(std::span<const std::uint32_t>(keys), ex);
+    return detail::build_tree(refs, cfg, static_cast<detail::RawNodeInfo<T>*>(nullptr), ex);
 }
 
 /// Builds an LBVH over `tris`. One line: `auto bvh = dynbvh::lbvh::build(tris);`
@@ -89,9 +126,12 @@ BinaryTree build_tree(References<T>& refs, const Config& cfg, const Exec& ex) {
 /// @tparam NodeT node layout, @tparam Prim prim::indexed or prim::precomputed, @tparam Exec backend.
 template <class NodeT = Node<>, class Prim = prim::indexed, class Exec = exec::default_executor>
 Bvh<NodeT, Prim> build(std::span<const Triangle<typename NodeT::scalar_type>> tris, const Config& cfg = {}, const Exec& ex = {}) {
+    using T = typename NodeT::scalar_type;
     auto refs = make_references(tris, ex);
-    const auto tree = build_tree(refs, cfg, ex);
-    return emit_bvh<NodeT, Prim>(tree, refs, tris, cfg.leaves, ex);
+    // The bottom-up construction computes every node's box and leaf collapse as it goes.
+    scratch_vector<detail::RawNodeInfo<T>> info(refs.size() > 1 ? refs.size() - 1 : 0);
+    const auto tree = detail::build_tree(refs, cfg, info.data(), ex);
+    return dynbvh::detail::emit_from_info<NodeT, Prim>(tree, refs, tris, std::span<const detail::RawNodeInfo<T>>(info), ex);
 }
 
 } // namespace dynbvh::lbvh

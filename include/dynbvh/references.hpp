@@ -5,7 +5,9 @@
 /// never be hit, and keeping them would poison every box above them.
 #pragma once
 
+#include <algorithm>
 #include <cstdint>
+#include <limits>
 #include <span>
 #include <vector>
 
@@ -60,35 +62,53 @@ void update_reference_bounds(References<T>& refs, const Exec& ex) {
 /// triangles when all are finite (the common case), a second compacting pass otherwise.
 template <class T, class Exec>
 References<T> make_references(std::span<const Triangle<T>> tris, const Exec& ex) {
-    using BP = detail::BoundsPair<T>;
     struct Acc {
-        BP bounds;
-        std::size_t bad = 0;
+        Vec3<T> lo, hi, clo, chi;   // bounds and centroid bounds, as corners (kept in registers)
+        std::size_t bad;
     };
+    constexpr T inf = std::numeric_limits<T>::infinity();
+    const Acc empty{{inf, inf, inf}, {-inf, -inf, -inf}, {inf, inf, inf}, {-inf, -inf, -inf}, 0};
     References<T> refs;
     refs.primitive_count = tris.size();
     const std::size_t n = tris.size();
     refs.box.resize(n);
     refs.prim.resize(n);
-    const Acc acc = ex.reduce(
-        std::size_t(0), n, Acc{},
-        [&](std::size_t i) {
-            Acc a;
-            const AABB<T> b = tris[i].bounds();
-            refs.box[i] = b;
-            refs.prim[i] = static_cast<std::uint32_t>(i);
-            if (tris[i].is_finite()) {
-                a.bounds.box = b;
-                a.bounds.centroid.extend(b.center());
+    // A few tasks, each reducing its range in registers (a per-element reduction would merge whole
+    // boxes per triangle), then a serial merge of the task results.
+    const std::size_t tasks = std::clamp<std::size_t>(n / 4096, 1, 4 * ex.concurrency());
+    const std::size_t chunk = (n + tasks - 1) / tasks;
+    std::vector<Acc> partial(tasks, empty);
+    ex.for_tasks(tasks, [&](std::size_t k) {
+        Acc a = empty;
+        AABB<T>* box = refs.box.data();
+        std::uint32_t* prim = refs.prim.data();
+        for (std::size_t i = std::min(n, k * chunk), e = std::min(n, i + chunk); i < e; ++i) {
+            const Triangle<T>& t = tris[i];
+            const Vec3<T> lo = dynbvh::min(dynbvh::min(t.p0, t.p1), t.p2);
+            const Vec3<T> hi = dynbvh::max(dynbvh::max(t.p0, t.p1), t.p2);
+            box[i] = {lo, hi};
+            prim[i] = static_cast<std::uint32_t>(i);
+            // x - x is 0 for finite x and NaN for infinities and NaN (min/max above may drop a NaN).
+            const Vec3<T> z = (t.p0 - t.p0) + (t.p1 - t.p1) + (t.p2 - t.p2);
+            if (z.x + z.y + z.z == T(0)) {
+                const Vec3<T> c = (lo + hi) * T(0.5);
+                a.lo = dynbvh::min(a.lo, lo);
+                a.hi = dynbvh::max(a.hi, hi);
+                a.clo = dynbvh::min(a.clo, c);
+                a.chi = dynbvh::max(a.chi, c);
             } else {
-                a.bad = 1;
+                ++a.bad;
             }
-            return a;
-        },
-        [](const Acc& x, const Acc& y) { return Acc{BP::combine(x.bounds, y.bounds), x.bad + y.bad}; });
+        }
+        partial[k] = a;
+    });
+    Acc acc = empty;
+    for (const Acc& a : partial)
+        acc = {dynbvh::min(acc.lo, a.lo), dynbvh::max(acc.hi, a.hi), dynbvh::min(acc.clo, a.clo), dynbvh::max(acc.chi, a.chi),
+               acc.bad + a.bad};
     refs.excluded = acc.bad;
-    refs.bounds = acc.bounds.box;
-    refs.centroid_bounds = acc.bounds.centroid;
+    refs.bounds = {acc.lo, acc.hi};
+    refs.centroid_bounds = {acc.clo, acc.chi};
     if (acc.bad != 0) {
         std::size_t k = 0;
         for (std::size_t i = 0; i < n; ++i)

@@ -66,6 +66,34 @@ void check_triangles(const Bvh<NodeT, Prim>& bvh, std::size_t given, const char*
     }
 }
 
+/// Tests the triangles of leaf slots [first, end) (slot i is triangle ids[i], or leaf_tris[i] for
+/// precomputed trees). Each hit narrows tmax and tbox = tmax * t_scale (the box tests' units) and is
+/// kept in `hit`/`best_slot`; with AnyHit the first hit sets hit.prim and returns true (stop).
+/// Shared by the binary and the wide traversal (wide.hpp).
+template <class Tri, bool AnyHit, bool Precomputed, class T, class Index>
+DYNBVH_ALWAYS_INLINE bool test_leaf(const typename Tri::template prepared<T>& pt, const Triangle<T>* leaf_tris,
+                                    const Index* ids, std::size_t first, std::size_t end, T t_scale, T& tmax, T& tbox,
+                                    std::size_t& best_slot, Hit<T>& hit) {
+    for (std::size_t slot = first; slot < end; ++slot) {
+        const Triangle<T>& tri = Precomputed ? leaf_tris[slot] : leaf_tris[ids[slot]];
+        T t, u, v;
+        if (Tri::test(pt, tri, tmax, t, u, v)) {
+            hit.t = t;
+            hit.u = u;
+            hit.v = v;
+            if constexpr (AnyHit) {
+                hit.prim = static_cast<std::uint32_t>(ids[slot]);
+                return true;
+            } else {
+                tmax = t;
+                tbox = t * t_scale;
+                best_slot = slot;
+            }
+        }
+    }
+    return false;
+}
+
 /// The one traversal loop, for one ray direction octant `Oct` (box tests without run-time sign
 /// selects). `AnyHit` stops at the first hit. Returns false when the stack of `cap` entries would
 /// overflow (only possible for a tree whose `depth` field understates its depth); `hit` is then
@@ -90,6 +118,7 @@ bool traverse_octant(const Bvh<NodeT, Prim>& bvh, std::span<const Triangle<typen
     std::size_t sp = 0;
     std::size_t best_slot = ~std::size_t(0);
     Index cur = 0;
+    T tbox = tmax * pb.t_scale;  // tmax in the box test's units (see box::robust)
     for (;;) {
         const NodeT& n = nodes[cur];
         if (!n.is_leaf()) {
@@ -97,8 +126,8 @@ bool traverse_octant(const Bvh<NodeT, Prim>& bvh, std::span<const Triangle<typen
             const NodeT& n0 = nodes[c0];
             const NodeT& n1 = nodes[c1];
             T d0, d1;
-            const bool h0 = Box::template test_octant<Oct>(pb, n0.min, n0.max, tmax, d0);
-            const bool h1 = Box::template test_octant<Oct>(pb, n1.min, n1.max, tmax, d1);
+            const bool h0 = Box::template test_octant<Oct>(pb, n0.min, n0.max, tbox, d0);
+            const bool h1 = Box::template test_octant<Oct>(pb, n1.min, n1.max, tbox, d1);
             if (h0 && h1) {
                 if (sp == cap) [[unlikely]] return false;
                 const bool second = d1 < d0;
@@ -111,23 +140,9 @@ bool traverse_octant(const Bvh<NodeT, Prim>& bvh, std::span<const Triangle<typen
                 continue;
             }
         } else {
-            const std::size_t end = std::size_t(n.index) + std::size_t(n.count);
-            for (std::size_t slot = n.index; slot < end; ++slot) {
-                const Triangle<T>& tri = Bvh<NodeT, Prim>::precomputed ? leaf_tris[slot] : leaf_tris[ids[slot]];
-                T t, u, v;
-                if (Tri::test(pt, tri, tmax, t, u, v)) {
-                    hit.t = t;
-                    hit.u = u;
-                    hit.v = v;
-                    if constexpr (AnyHit) {
-                        hit.prim = static_cast<std::uint32_t>(ids[slot]);
-                        return true;
-                    } else {
-                        tmax = t;
-                        best_slot = slot;
-                    }
-                }
-            }
+            if (test_leaf<Tri, AnyHit, Bvh<NodeT, Prim>::precomputed>(pt, leaf_tris, ids, n.index, std::size_t(n.index) + n.count,
+                                                                    T(pb.t_scale), tmax, tbox, best_slot, hit))
+                return true;
         }
         // Pop the next subtree that can still hold a closer hit.
         for (;;) {
@@ -136,7 +151,7 @@ bool traverse_octant(const Bvh<NodeT, Prim>& bvh, std::span<const Triangle<typen
                 return true;
             }
             const StackEntry<Index, T> e = stack[--sp];
-            if (Box::before(e.tentry, tmax)) {
+            if (Box::before(e.tentry, tbox)) {
                 cur = e.node;
                 break;
             }

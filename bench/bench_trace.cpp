@@ -1,0 +1,267 @@
+// Single-ray closest-hit trace speed of our binary and 4-wide traversals next to Embree 3's
+// rtcIntersect1 (LOW and MEDIUM build quality), on the same frames, the same primary camera rays and
+// the same thread counts in one run, so every figure reads as a ratio to Embree measured beside it.
+//
+//   dynbvh-bench-trace [--threads=1,2] [--res=854x480] [--reps=5] [--scenes=cloth-ball,n-body,funnel,bunny,dragon]
+//
+// Scenes: the middle frame of the built-in cloth-ball, n-body and funnel (scene camera), and the
+// Stanford bunny and dragon from DYNBVH_DATA_DIR when present (a camera that frames the mesh).
+// Trees: LBVH, PLOC (r = 5) and binned SAH, prim::indexed, each traced binary (traverse.hpp) and
+// converted to 4-wide (wide.hpp); trace::robust unless the row says "fast"; "pre" = prim::precomputed.
+// Rays: one per pixel through the pixel centre, tiles of 16x16 pixels handed to OpenMP threads
+// dynamically (Embree's device gets the same thread count). Each rep traces every method once
+// (interleaved, so load from other processes hits all alike); the figure is the median over reps.
+// Also printed: SAH (Ct = 3, Ci = 2) of each tree (binary and wide), build and conversion time
+// (median, at the largest thread count), and hit agreement with the binary traversal.
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <functional>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <dynbvh/binned_sah.hpp>
+#include <dynbvh/io/obj.hpp>
+#include <dynbvh/io/ply.hpp>
+#include <dynbvh/lbvh.hpp>
+#include <dynbvh/ploc.hpp>
+#include <dynbvh/sah.hpp>
+#include <dynbvh/scenes/builtin.hpp>
+#include <dynbvh/traverse.hpp>
+#include <dynbvh/wide.hpp>
+
+#include "embree_bvh.hpp"
+#include "study/camera.hpp"
+
+namespace {
+
+using namespace dynbvh;
+using Clock = std::chrono::steady_clock;
+
+double ms_since(Clock::time_point t0) { return std::chrono::duration<double, std::milli>(Clock::now() - t0).count(); }
+
+double median(std::vector<double> v) {
+    std::sort(v.begin(), v.end());
+    const std::size_t n = v.size();
+    return n == 0 ? 0 : (n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]));
+}
+
+std::vector<std::string> split(const std::string& s, char sep) {
+    std::vector<std::string> out;
+    std::size_t b = 0;
+    for (;;) {
+        const std::size_t e = s.find(sep, b);
+        out.push_back(s.substr(b, e == std::string::npos ? std::string::npos : e - b));
+        if (e == std::string::npos) break;
+        b = e + 1;
+    }
+    return out;
+}
+
+struct SceneData {
+    std::string name;
+    std::vector<Trianglef> tris;
+    io::Camera camera;
+};
+
+bool load_scene(const std::string& name, SceneData& out) {
+    out.name = name;
+    if (name == "bunny" || name == "dragon") {
+        const std::string path = std::string(DYNBVH_DATA_DIR) + (name == "bunny" ? "/meshes/bun_zipper.ply" : "/meshes/dragon_100k.obj");
+        try {
+            const io::Mesh mesh = name == "bunny" ? io::read_ply(path) : io::read_obj(path);
+            out.tris = mesh.triangles();
+            out.camera = io::frame_bounds_camera(mesh.bounds());
+        } catch (const std::exception& e) {
+            std::printf("(skipping %s: %s)\n", name.c_str(), e.what());
+            return false;
+        }
+        return true;
+    }
+    auto scene = scenes::make_builtin(name);
+    io::Frame f;
+    scene->frame(scene->frame_count() / 2, f);
+    out.tris = std::move(f.triangles);
+    out.camera = f.camera;
+    return true;
+}
+
+/// One traced method: a name and a function tracing every pixel into `out` with `threads` threads.
+struct Method {
+    std::string name;
+    std::function<void(const study::RayGen&, int threads, std::vector<std::uint32_t>& out)> trace;
+    std::vector<double> ms[2];   // per thread-count slot
+};
+
+template <class Isect>
+void trace_image(const study::RayGen& gen, int threads, std::vector<std::uint32_t>& out, const Isect& isect) {
+    const int w = gen.width();
+    exec::omp{.threads = threads}.for_tasks(gen.tile_count(), [&](std::size_t k) {
+        const study::Tile t = gen.tile(k);
+        for (int y = t.y0; y < t.y1; ++y)
+            for (int x = t.x0; x < t.x1; ++x) out[std::size_t(y) * std::size_t(w) + std::size_t(x)] = isect(gen.ray(x, y));
+    });
+}
+
+} // namespace
+
+int main(int argc, char** argv) {
+    std::vector<int> thread_counts = {1, 2};
+    int width = 854, height = 480, reps = 5;
+    std::uint32_t max_leaf = LeafConfig{}.max_leaf_size;   // --leaf=N: most references per leaf of our trees
+    std::vector<std::string> scene_names = {"cloth-ball", "n-body", "funnel", "bunny", "dragon"};
+    std::string only;   // --only=NAME: time just this method (and Embree LOW/MEDIUM), for profiling
+    for (int i = 1; i < argc; ++i) {
+        const std::string a = argv[i];
+        if (a.rfind("--threads=", 0) == 0) {
+            thread_counts.clear();
+            for (const auto& s : split(a.substr(10), ',')) thread_counts.push_back(std::max(1, std::atoi(s.c_str())));
+            if (thread_counts.size() > 2) thread_counts.resize(2);
+        } else if (a.rfind("--res=", 0) == 0) {
+            if (std::sscanf(a.c_str() + 6, "%dx%d", &width, &height) != 2 || width < 1 || height < 1) {
+                std::fprintf(stderr, "bad --res (want WxH): %s\n", a.c_str());
+                return 2;
+            }
+        } else if (a.rfind("--reps=", 0) == 0) {
+            reps = std::max(1, std::atoi(a.c_str() + 7));
+        } else if (a.rfind("--leaf=", 0) == 0) {
+            max_leaf = std::uint32_t(std::clamp(std::atoi(a.c_str() + 7), 1, 256));
+        } else if (a.rfind("--only=", 0) == 0) {
+            only = a.substr(7);
+        } else if (a.rfind("--scenes=", 0) == 0) {
+            scene_names = split(a.substr(9), ',');
+        } else {
+            std::fprintf(stderr, "usage: %s [--threads=1,2] [--res=854x480] [--reps=5] [--leaf=8] [--scenes=a,b,...] [--only=method]\n", argv[0]);
+            return 2;
+        }
+    }
+    const int build_threads = *std::max_element(thread_counts.begin(), thread_counts.end());
+    const exec::omp bex{.threads = build_threads};
+    std::printf("dynbvh-bench-trace: %dx%d primary rays, %d reps (median), max leaf %u, Embree %s, SIMD %s\n", width,
+                height, reps, max_leaf, RTC_VERSION_STRING,
+#if defined(DYNBVH_WIDE_SSE) && defined(__AVX2__)
+                "SSE (AVX2/FMA target)"
+#elif defined(DYNBVH_WIDE_SSE)
+                "SSE2"
+#else
+                "none (scalar)"
+#endif
+    );
+
+    for (const std::string& sname : scene_names) {
+        SceneData sc;
+        if (!load_scene(sname, sc)) continue;
+        const std::span<const Trianglef> tris(sc.tris);
+        const study::RayGen gen(sc.camera, width, height);
+        const std::size_t nrays = std::size_t(width) * std::size_t(height);
+
+        // Build every tree once for tracing, and time LBVH build and wide conversion.
+        const LeafConfig leaves{.max_leaf_size = max_leaf};
+        auto lb = lbvh::build(tris, {.leaves = leaves}, bex);
+        auto pl = ploc::build(tris, {.radius = 5, .leaves = leaves}, bex);
+        auto sb = binned_sah::build(tris, {.leaves = leaves}, bex);
+        auto plp = ploc::build<Node<>, prim::precomputed>(tris, {.radius = 5, .leaves = leaves}, bex);
+        std::vector<double> t_lbvh, t_conv, t_conv_ploc, t_lbvh1, t_conv1;
+        for (int r = 0; r < std::max(reps, 5); ++r) {
+            auto t0 = Clock::now();
+            auto b = lbvh::build(tris, {.leaves = leaves}, bex);
+            t_lbvh.push_back(ms_since(t0));
+            t0 = Clock::now();
+            auto w = make_wide(b, bex);
+            t_conv.push_back(ms_since(t0));
+            t0 = Clock::now();
+            auto w2 = make_wide(pl, bex);
+            t_conv_ploc.push_back(ms_since(t0));
+            t0 = Clock::now();
+            auto b1 = lbvh::build(tris, {.leaves = leaves}, exec::serial{});
+            t_lbvh1.push_back(ms_since(t0));
+            t0 = Clock::now();
+            auto w1 = make_wide(b1, exec::serial{});
+            t_conv1.push_back(ms_since(t0));
+        }
+        const auto lw = make_wide(lb, bex), pw = make_wide(pl, bex), sw = make_wide(sb, bex);
+        const auto pwp = make_wide(plp, bex);
+
+        bench::EmbreeBvh elow(build_threads, bench::EmbreeMode::low), emed(build_threads, bench::EmbreeMode::medium);
+        elow.update(tris);
+        elow.commit();
+        emed.update(tris);
+        emed.commit();
+
+        std::vector<Method> methods;
+        auto add = [&](std::string name, auto isect) {
+            methods.push_back({std::move(name), [isect](const study::RayGen& g, int th, std::vector<std::uint32_t>& out) {
+                                   trace_image(g, th, out, isect);
+                               }, {}});
+        };
+        add("embree-low", [&](const Rayf& r) { return elow.intersect(r).prim; });
+        add("embree-medium", [&](const Rayf& r) { return emed.intersect(r).prim; });
+        add("lbvh binary", [&](const Rayf& r) { return intersect(lb, tris, r).prim; });
+        add("lbvh wide", [&](const Rayf& r) { return intersect(lw, tris, r).prim; });
+        add("ploc binary", [&](const Rayf& r) { return intersect(pl, tris, r).prim; });
+        add("ploc wide", [&](const Rayf& r) { return intersect(pw, tris, r).prim; });
+        add("sah binary", [&](const Rayf& r) { return intersect(sb, tris, r).prim; });
+        add("sah wide", [&](const Rayf& r) { return intersect(sw, tris, r).prim; });
+        add("ploc wide pre", [&](const Rayf& r) { return intersect(pwp, tris, r).prim; });
+        add("ploc binary fast", [&](const Rayf& r) { return intersect<trace::fast>(pl, tris, r).prim; });
+        add("ploc wide fast", [&](const Rayf& r) { return intersect<trace::fast>(pw, tris, r).prim; });
+
+        // Agreement: wide vs binary on the same tree (robust: must be identical up to exact ties).
+        std::vector<std::uint32_t> a(nrays), b(nrays), e(nrays);
+        std::size_t hits = 0;
+        std::string agree;
+        for (std::size_t m = 2; m + 1 < 8; m += 2) {
+            methods[m].trace(gen, build_threads, a);
+            methods[m + 1].trace(gen, build_threads, b);
+            std::size_t diff = 0;
+            for (std::size_t i = 0; i < nrays; ++i) diff += a[i] != b[i];
+            agree += " " + methods[m].name.substr(0, methods[m].name.find(' ')) + ":" + std::to_string(diff);
+        }
+        methods[0].trace(gen, build_threads, e);
+        std::size_t emb_diff = 0;
+        for (std::size_t i = 0; i < nrays; ++i) {
+            hits += a[i] != invalid_prim;
+            emb_diff += (a[i] != invalid_prim) != (e[i] != invalid_prim);
+        }
+
+        for (int r = 0; r < reps; ++r)
+            for (std::size_t ti = 0; ti < thread_counts.size(); ++ti)
+                for (auto& m : methods) {
+                    if (!only.empty() && m.name != only && m.name.rfind("embree", 0) != 0) continue;
+                    const auto t0 = Clock::now();
+                    m.trace(gen, thread_counts[ti], a);
+                    m.ms[ti].push_back(ms_since(t0));
+                }
+
+        std::printf("\n== %s: %zu triangles, %zu rays, %.1f%% hit; wide!=binary rays:%s; hit/miss differs from embree-low on %zu rays\n",
+                    sname.c_str(), tris.size(), nrays, 100.0 * double(hits) / double(nrays), agree.c_str(), emb_diff);
+        const SahConfig sc3{.ct = 3, .ci = 2};
+        std::printf("   SAH binary/wide: lbvh %.2f/%.2f  ploc %.2f/%.2f  sah %.2f/%.2f;  wide nodes (depth) lbvh %zu (%u) ploc %zu (%u) sah %zu (%u)\n",
+                    sah_cost(lb, sc3), sah_cost(lw, sc3), sah_cost(pl, sc3), sah_cost(pw, sc3), sah_cost(sb, sc3),
+                    sah_cost(sw, sc3), lw.nodes.size(), lw.depth, pw.nodes.size(), pw.depth, sw.nodes.size(), sw.depth);
+        const double ml = median(t_lbvh), mc = median(t_conv), mcp = median(t_conv_ploc);
+        const double ml1 = median(t_lbvh1), mc1 = median(t_conv1);
+        std::printf("   build (%d threads): lbvh %.2f ms, wide conversion %.3f ms (%.1f%% of lbvh), of ploc tree %.3f ms;"
+                    " serial: lbvh %.2f ms, conversion %.3f ms (%.1f%%)\n",
+                    build_threads, ml, mc, 100.0 * mc / ml, mcp, ml1, mc1, 100.0 * mc1 / ml1);
+        std::printf("   %-18s", "method");
+        for (int th : thread_counts) std::printf(" | %2d thr: Mrays/s  /low  /med", th);
+        std::printf("\n");
+        for (const auto& m : methods) {
+            if (m.ms[0].empty()) continue;
+            std::printf("   %-18s", m.name.c_str());
+            for (std::size_t ti = 0; ti < thread_counts.size(); ++ti) {
+                const double mr = double(nrays) / median(m.ms[ti]) * 1e-3;
+                const double lo = double(nrays) / median(methods[0].ms[ti]) * 1e-3;
+                const double me = double(nrays) / median(methods[1].ms[ti]) * 1e-3;
+                std::printf(" |         %7.2f %5.2f %5.2f", mr, mr / lo, mr / me);
+            }
+            std::printf("\n");
+        }
+        std::fflush(stdout);
+    }
+    return 0;
+}
