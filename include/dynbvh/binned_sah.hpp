@@ -75,20 +75,25 @@ struct Bins {
     }
 };
 
-/// Maps a centre to its bin on each axis. Identical arithmetic in binning and partitioning.
+/// Maps a centre to its bin on each axis. Identical arithmetic in binning and partitioning, in
+/// double: a float extent near FLT_MAX would overflow, and bins / extent would overflow for a
+/// subnormal one (scenes at 1e-40), putting every centre in one bin.
 template <class T>
 struct Binner {
-    Vec3<T> origin{}, scale{};
+    Vec3<T> origin{};
+    double scale[3] = {0, 0, 0};
     std::uint32_t k = 0;
 
     Binner(const AABB<T>& centroids, std::uint32_t bins) : origin(centroids.min), k(bins) {
-        const Vec3<T> ext = centroids.diagonal();
-        for (int a = 0; a < 3; ++a) scale[a] = ext[a] > T(0) ? T(bins) / ext[a] : T(0);
+        for (int a = 0; a < 3; ++a) {
+            const double ext = double(centroids.max[a]) - double(centroids.min[a]);
+            scale[a] = ext > 0 ? double(bins) / ext : 0;
+        }
     }
     std::uint32_t bin(const Vec3<T>& c, int a) const noexcept {
-        const T f = (c[a] - origin[a]) * scale[a];
-        if (!(f > T(0))) return 0;
-        return f >= T(k - 1) ? k - 1 : static_cast<std::uint32_t>(f);
+        const double f = (double(c[a]) - double(origin[a])) * scale[a];
+        if (!(f > 0)) return 0;
+        return f >= double(k - 1) ? k - 1 : static_cast<std::uint32_t>(f);
     }
 };
 
