@@ -5,16 +5,6 @@
 # Exit status 1 when any target crashed (reproducers in build/fuzz/crashes/<format>/).
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
-need=()
-command -v clang++ >/dev/null || command -v clang++-14 >/dev/null || need+=(clang)
-dpkg-query -W -f='${Status}' libclang-rt-14-dev 2>/dev/null | grep -q "install ok installed" || need+=(libclang-rt-14-dev)
-dpkg-query -W -f='${Status}' libtinyobjloader-dev 2>/dev/null | grep -q "install ok installed" || need+=(libtinyobjloader-dev)
-if [ ${#need[@]} -gt 0 ]; then
-  echo "dynbvh: installing ${need[*]}" >&2
-  SUDO=""
-  [ "$(id -u)" -ne 0 ] && SUDO="sudo"
-  export DEBIAN_FRONTEND=noninteractive
-  $SUDO apt-get update -qq
-  $SUDO apt-get install -y -qq --no-install-recommends "${need[@]}" >/dev/null
-fi
+# clang and its fuzzer runtime, with what the tests need (tinyobjloader for the OBJ target)
+bash "$root/tools/deps.sh" clang libclang-rt-14-dev
 exec bash "$root/fuzz/run.sh" "$@"

@@ -323,4 +323,13 @@ std::unique_ptr<Accel> make_accel(const BuilderSpec& spec, const Backend& backen
     });
 }
 
+void warm_up(const BuilderSpec& spec, const Backend& backend, std::span<const Trianglef> tris, const io::Camera& cam) {
+    auto a = make_accel(spec, backend);
+    std::vector<std::uint32_t> prims(64 * 48);
+    a->prepare(tris);
+    a->build(tris);
+    a->release_previous();
+    a->trace(tris, RayGen(cam, 64, 48), prims);
+}
+
 } // namespace dynbvh::study

@@ -100,4 +100,8 @@ struct AccelTracer {
 /// Throws std::runtime_error for an Embree builder in a binary without Embree.
 std::unique_ptr<Accel> make_accel(const BuilderSpec& spec, const Backend& backend);
 
+/// Untimed warm-up before the timed frames: makes `spec`'s structure, builds it over `tris` and traces
+/// a 64x48 image from `cam` once (code, thread pools and allocator caches are then warm).
+void warm_up(const BuilderSpec& spec, const Backend& backend, std::span<const Trianglef> tris, const io::Camera& cam);
+
 } // namespace dynbvh::study

@@ -220,15 +220,8 @@ StudyResults run_study(const Options& opt, const Backend& backend) {
                 run_specs.push_back(b);
             }
             if (opt.warmup && src.size() > 0) {
-                for (const auto& b : run_specs) {
-                    auto a = make_accel(b, backend);
-                    const io::Frame& f = src.get(0);
-                    std::vector<std::uint32_t> prims(64 * 48);
-                    a->prepare(f.triangles);
-                    a->build(f.triangles);
-                    a->release_previous();
-                    a->trace(f.triangles, RayGen(f.camera, 64, 48), prims);
-                }
+                const io::Frame& f = src.get(0);
+                for (const auto& b : run_specs) warm_up(b, backend, f.triangles, f.camera);
             }
             // Which frames to render: evenly spread over those used.
             std::vector<std::size_t> image_ks;

@@ -86,16 +86,9 @@ void run_sweep(const Options& opt, const Backend& backend, const std::vector<std
         sum.triangles_min = sum.triangles_max = p.tris;
         FrameSource src(scene, p.ids, opt.cache_mb << 20);
         if (opt.warmup && src.size() > 0) {
-            for (const auto& b : distinct) {
-                if (b.kind == Kind::refit && topo) continue;
-                auto a = make_accel(b, backend);
-                const io::Frame& f = src.get(0);
-                std::vector<std::uint32_t> prims(64 * 48);
-                a->prepare(f.triangles);
-                a->build(f.triangles);
-                a->release_previous();
-                a->trace(f.triangles, RayGen(f.camera, 64, 48), prims);
-            }
+            const io::Frame& f = src.get(0);
+            for (const auto& b : distinct)
+                if (!(b.kind == Kind::refit && topo)) warm_up(b, backend, f.triangles, f.camera);
         }
         // Reference hits per frame.
         std::vector<std::vector<std::uint32_t>> ref_prims(src.size());
