@@ -49,10 +49,14 @@ build() {
   fi
 }
 
+# The targets compile in parallel (each takes tens of seconds), then fuzz one after another.
+pids=()
+for t in "${targets[@]}"; do build "$t" & pids+=($!); done
+for p in "${pids[@]}"; do wait "$p"; done
+
 status=0
 summary=()
 for t in "${targets[@]}"; do
-  build "$t"
   work=$out/corpus/$t crashes=$out/crashes/$t log=$out/fuzz_$t.log
   mkdir -p "$work" "$crashes"
   dict=()

@@ -22,6 +22,7 @@
 #include <dynbvh/validate.hpp>
 
 #include "builds.hpp"  // shared builder instantiations, compiled once
+#include "sanitized.hpp"
 
 namespace dynbvh::test {
 
@@ -94,8 +95,6 @@ inline std::vector<Trianglef> long_thin(std::size_t n, std::uint64_t seed = 3) {
 inline std::string data_path(const std::string& rel) { return std::string(DYNBVH_DATA_DIR) + "/" + rel; }
 inline bool have_data(const std::string& rel) { return std::filesystem::exists(data_path(rel)); }
 
-/// True in the sanitizer runs (tools/test.sh and tools/tsan.sh set DYNBVH_SANITIZED): use smaller counts.
-inline bool sanitized() { return std::getenv("DYNBVH_SANITIZED") != nullptr; }
 
 /// The executors this build has, as a tuple for templated checks.
 inline auto executors() {

@@ -6,6 +6,7 @@
 #include <dynbvh/traverse.hpp>
 #include <dynbvh/validate.hpp>
 
+#include "sanitized.hpp"
 #include "simple_builder.hpp"
 
 #include <bit>
@@ -182,7 +183,7 @@ void check_scene(const std::vector<Triangle<typename NodeT::scalar_type>>& tris,
                  const std::string& what, bool fast_exact = true) {
     using T = typename NodeT::scalar_type;
     std::vector<Kind> kinds;
-    const auto rays = make_rays<T>(tris, nrays, 1234, kinds, true);
+    const auto rays = make_rays<T>(tris, test::sanitizer_scaled(nrays), 1234, kinds, true);
     const auto brute_w = brute_all<trace::robust>(tris, rays);
     const auto brute_m = brute_all<trace::fast>(tris, rays);
     std::size_t hits = 0;

@@ -260,7 +260,7 @@ template <class T, class Build>
 std::size_t check_exact(const std::vector<Triangle<T>>& tris, std::size_t nrays, Build build, const std::string& what,
                         std::size_t& fast_bad) {
     const std::span<const Triangle<T>> ts(tris);
-    const auto rays = make_rays(tris, nrays, 99);
+    const auto rays = make_rays(tris, test::sanitizer_scaled(nrays), 99);
     const auto bi = build.template operator()<prim::indexed>(ts);
     const auto bp = build.template operator()<prim::precomputed>(ts);
     const auto wi = make_wide(bi), wp = make_wide(bp);

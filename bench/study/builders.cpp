@@ -5,16 +5,8 @@
 #include <sstream>
 #include <stdexcept>
 
-#include <dynbvh/binned_sah.hpp>
-#include <dynbvh/bvh.hpp>
-#include <dynbvh/kbvh.hpp>
-#include <dynbvh/lbvh.hpp>
-#include <dynbvh/ploc.hpp>
-#include <dynbvh/refit.hpp>
-#include <dynbvh/sah.hpp>
-#include <dynbvh/traverse.hpp>
-#include <dynbvh/wide.hpp>
 
+#include "dyn_accel.hpp"
 #include "options.hpp"
 
 #if defined(DYNBVH_STUDY_EMBREE)
@@ -167,120 +159,6 @@ std::string embree_version() {
 
 namespace {
 
-/// The tracing loop every builder shares: tiles in parallel through the executor, one ray per pixel.
-template <class Intersect>
-void trace_tiles(const Backend& backend, const RayGen& gen, std::span<std::uint32_t> out, const Intersect& isect) {
-    const int w = gen.width();
-    backend.for_tasks(gen.tile_count(), [&](std::size_t k) {
-        const Tile t = gen.tile(k);
-        for (int y = t.y0; y < t.y1; ++y)
-            for (int x = t.x0; x < t.x1; ++x) out[std::size_t(y) * std::size_t(w) + std::size_t(x)] = isect(gen.ray(x, y));
-    });
-}
-
-/// Our builders on executor Exec with primitive policy Prim.
-template <class Exec, class Prim>
-class DynAccel final : public Accel {
-public:
-    using BvhT = Bvh<Node<>, Prim>;
-    using WideT = wide_bvh_of<BvhT>;
-
-    DynAccel(const BuilderSpec& spec, const Exec& ex, const Backend& backend) : spec_(spec), ex_(ex), backend_(backend) {}
-
-    void build(std::span<const Trianglef> tris) override {
-        previous_ = std::move(bvh_);   // freed untimed in release_previous()
-        previous_wide_ = std::move(wide_);
-        build_binary(tris);
-        // The 4-wide tree traced when spec_.wide (timed as part of the build). The binary tree stays
-        // (refit and the SAH column use it).
-        if (spec_.wide) wide_ = make_wide(bvh_, ex_);
-    }
-    void build_binary(std::span<const Trianglef> tris) {
-        const LeafConfig leaves{.max_leaf_size = spec_.max_leaf};
-        switch (spec_.kind) {
-            case Kind::lbvh:
-                bvh_ = lbvh::build<Node<>, Prim>(tris, {.morton_bits = spec_.morton_bits, .leaves = leaves}, ex_);
-                break;
-            case Kind::refit:
-                if (previous_.empty() || previous_.primitive_count != tris.size()) {
-                    bvh_ = lbvh::build<Node<>, Prim>(tris, {.morton_bits = spec_.morton_bits, .leaves = leaves}, ex_);
-                } else {
-                    bvh_ = std::move(previous_);
-                    dynbvh::refit(bvh_, tris, ex_);
-                }
-                break;
-            case Kind::ploc:
-                bvh_ = ploc::build<Node<>, Prim>(
-                    tris, {.radius = spec_.radius, .morton_bits = spec_.morton_bits, .leaves = leaves}, ex_);
-                break;
-            case Kind::kbvh: {
-                const kbvh::Config<kbvh::with_ploc> cfg{
-                    .split = {.beta = spec_.beta},
-                    .builder = {.radius = spec_.radius, .morton_bits = spec_.morton_bits, .leaves = leaves}};
-                bvh_ = kbvh::build<Node<>, Prim>(tris, cfg, ex_);
-                break;
-            }
-            case Kind::binned_sah:
-                bvh_ = binned_sah::build<Node<>, Prim>(tris, {.bins = spec_.bins, .leaves = leaves}, ex_);
-                break;
-            default:
-                throw std::logic_error("DynAccel: not one of our builders");
-        }
-    }
-    void release_previous() override {
-        previous_ = BvhT{};
-        previous_wide_ = WideT{};
-    }
-
-    void trace(std::span<const Trianglef> tris, const RayGen& gen, std::span<std::uint32_t> out) override {
-        if (spec_.fast_box && spec_.fast_tri) run<trace::fast>(tris, gen, out);
-        else if (spec_.fast_box) run<trace::policy<box::fast, tri::watertight>>(tris, gen, out);
-        else if (spec_.fast_tri) run<trace::policy<box::robust, tri::moller_trumbore>>(tris, gen, out);
-        else run<trace::robust>(tris, gen, out);
-    }
-    std::optional<double> sah() const override { return sah_cost(bvh_, SahConfig{.ct = 3, .ci = 2}, ex_); }
-    /// The traced tree's bytes (the wide one when spec_.wide).
-    std::optional<std::size_t> memory_bytes() const override { return spec_.wide ? wide_.memory_bytes() : bvh_.memory_bytes(); }
-    /// Single-ray queries (effect rays) go through the same tree as trace().
-    Hitf intersect(std::span<const Trianglef> tris, const Rayf& r) const override {
-        return with_policy([&]<class Policy>() {
-            return spec_.wide ? dynbvh::intersect<Policy>(wide_, tris, r) : dynbvh::intersect<Policy>(bvh_, tris, r);
-        });
-    }
-    bool occluded(std::span<const Trianglef> tris, const Rayf& r) const override {
-        return with_policy([&]<class Policy>() {
-            return spec_.wide ? dynbvh::occluded<Policy>(wide_, tris, r) : dynbvh::occluded<Policy>(bvh_, tris, r);
-        });
-    }
-
-private:
-    /// f.template operator()<Policy>() with the spec's box and triangle tests (single-ray queries).
-    template <class F>
-    decltype(auto) with_policy(const F& f) const {
-        if (spec_.fast_box && spec_.fast_tri) return f.template operator()<trace::fast>();
-        if (spec_.fast_box) return f.template operator()<trace::policy<box::fast, tri::watertight>>();
-        if (spec_.fast_tri) return f.template operator()<trace::policy<box::robust, tri::moller_trumbore>>();
-        return f.template operator()<trace::robust>();
-    }
-
-    template <class Policy>
-    void run(std::span<const Trianglef> tris, const RayGen& gen, std::span<std::uint32_t> out) const {
-        if (spec_.wide) {
-            const WideT& wide = wide_;
-            trace_tiles(backend_, gen, out, [&](const Rayf& r) { return dynbvh::intersect<Policy>(wide, tris, r).prim; });
-            return;
-        }
-        const BvhT& bvh = bvh_;
-        trace_tiles(backend_, gen, out, [&](const Rayf& r) { return dynbvh::intersect<Policy>(bvh, tris, r).prim; });
-    }
-
-    BuilderSpec spec_;
-    const Exec& ex_;
-    const Backend& backend_;
-    BvhT bvh_, previous_;
-    WideT wide_, previous_wide_;
-};
-
 #if defined(DYNBVH_STUDY_EMBREE)
 class EmbreeAccel final : public Accel {
 public:
@@ -316,11 +194,7 @@ std::unique_ptr<Accel> make_accel(const BuilderSpec& spec, const Backend& backen
         throw std::runtime_error("builder " + spec.name() + ": this dynbvh-study was built without Embree 3 (install libembree-dev)");
 #endif
     }
-    return backend.visit([&](const auto& ex) -> std::unique_ptr<Accel> {
-        using Exec = std::decay_t<decltype(ex)>;
-        if (spec.precomputed) return std::make_unique<DynAccel<Exec, prim::precomputed>>(spec, ex, backend);
-        return std::make_unique<DynAccel<Exec, prim::indexed>>(spec, ex, backend);
-    });
+    return backend.visit([&](const auto& ex) { return make_dyn_accel(spec, ex, backend); });
 }
 
 void warm_up(const BuilderSpec& spec, const Backend& backend, std::span<const Trianglef> tris, const io::Camera& cam) {

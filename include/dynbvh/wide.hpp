@@ -130,9 +130,9 @@ struct WideBvh {
     /// and zeroing fresh pages.
     scratch_vector<node_type> nodes;
     /// As Bvh::prim_ids (leaf slot -> user triangle index).
-    std::vector<index_type> prim_ids;
+    scratch_vector<index_type> prim_ids;
     /// prim::precomputed only: as Bvh::leaf_triangles.
-    std::vector<triangle_type> leaf_triangles;
+    scratch_vector<triangle_type> leaf_triangles;
     /// Edges from the root to the deepest wide node (a leaf slot of that node is one level deeper).
     std::uint32_t depth = 0;
     std::size_t primitive_count = 0;   ///< as Bvh::primitive_count
@@ -160,7 +160,7 @@ namespace detail {
 /// children, the inner child of largest surface area is replaced by its two children while fewer than
 /// four and some child is inner.
 template <class NodeT>
-inline int open_wide(const std::vector<NodeT>& bin, typename NodeT::index_type b, typename NodeT::index_type* c) {
+inline int open_wide(std::span<const NodeT> bin, typename NodeT::index_type b, typename NodeT::index_type* c) {
     c[0] = bin[b].left();
     c[1] = bin[b].right();
     int n = 2;
@@ -187,7 +187,7 @@ inline int open_wide(const std::vector<NodeT>& bin, typename NodeT::index_type b
 /// Writes the wide node for binary inner node `b` into `w`; calls inner(slot, binary child) for each
 /// inner child (the caller sets w.child[slot]).
 template <class NodeT, class Inner>
-inline void fill_wide(const std::vector<NodeT>& bin, typename NodeT::index_type b,
+inline void fill_wide(std::span<const NodeT> bin, typename NodeT::index_type b,
                       WideNode<typename NodeT::scalar_type, typename NodeT::index_type>& w, Inner&& inner) {
     typename NodeT::index_type c[4];
     const int n = open_wide(bin, b, c);
@@ -213,7 +213,7 @@ template <class NodeT, class Prim, class Exec>
 void collapse_to_wide(const Bvh<NodeT, Prim>& bvh, wide_bvh_of<Bvh<NodeT, Prim>>& wide, const Exec& ex) {
     using Index = typename NodeT::index_type;
     using WNode = WideNode<typename NodeT::scalar_type, Index>;
-    const std::vector<NodeT>& bin = bvh.nodes;
+    const std::span<const NodeT> bin(bvh.nodes);
     wide.nodes.clear();
     wide.depth = 0;
     if (bin.empty()) return;
