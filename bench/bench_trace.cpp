@@ -7,7 +7,9 @@
 // Scenes: the middle frame of the built-in cloth-ball, n-body and funnel (scene camera), and the
 // Stanford bunny and dragon from DYNBVH_DATA_DIR when present (a camera that frames the mesh).
 // Trees: LBVH, PLOC (r = 5) and binned SAH, prim::indexed, each traced binary (traverse.hpp) and
-// converted to 4-wide (wide.hpp); trace::robust unless the row says "fast"; "pre" = prim::precomputed.
+// converted to 4-wide and 8-wide ("wide8") nodes (wide.hpp); trace::robust unless the row says "fast";
+// "pre" = prim::precomputed. 8-wide nodes are tested with AVX when compiled with it (-march=native,
+// DYNBVH_NATIVE), else in two SSE steps.
 // Rays: one per pixel through the pixel centre, tiles of 16x16 pixels handed to OpenMP threads
 // dynamically (Embree's device gets the same thread count). Each rep traces every method once
 // (interleaved, so load from other processes hits all alike); the figure is the median over reps.
@@ -142,8 +144,8 @@ int main(int argc, char** argv) {
     const exec::omp bex{.threads = build_threads};
     std::printf("dynbvh-bench-trace: %dx%d primary rays, %d reps (median), max leaf %u, Embree %s, SIMD %s\n", width,
                 height, reps, max_leaf, RTC_VERSION_STRING,
-#if defined(DYNBVH_WIDE_SSE) && defined(__AVX2__)
-                "SSE (AVX2/FMA target)"
+#if defined(DYNBVH_WIDE_AVX)
+                "SSE, AVX for 8-wide nodes"
 #elif defined(DYNBVH_WIDE_SSE)
                 "SSE2"
 #else
@@ -164,7 +166,7 @@ int main(int argc, char** argv) {
         auto pl = ploc::build(tris, {.radius = 5, .leaves = leaves}, bex);
         auto sb = binned_sah::build(tris, {.leaves = leaves}, bex);
         auto plp = ploc::build<Node<>, prim::precomputed>(tris, {.radius = 5, .leaves = leaves}, bex);
-        std::vector<double> t_lbvh, t_conv, t_conv_ploc, t_lbvh1, t_conv1;
+        std::vector<double> t_lbvh, t_conv, t_conv_ploc, t_lbvh1, t_conv1, t_conv8;
         for (int r = 0; r < std::max(reps, 5); ++r) {
             auto t0 = Clock::now();
             auto b = lbvh::build(tris, {.leaves = leaves}, bex);
@@ -172,6 +174,9 @@ int main(int argc, char** argv) {
             t0 = Clock::now();
             auto w = make_wide(b, bex);
             t_conv.push_back(ms_since(t0));
+            t0 = Clock::now();
+            auto w8 = make_wide<8>(b, bex);
+            t_conv8.push_back(ms_since(t0));
             t0 = Clock::now();
             auto w2 = make_wide(pl, bex);
             t_conv_ploc.push_back(ms_since(t0));
@@ -184,6 +189,7 @@ int main(int argc, char** argv) {
         }
         const auto lw = make_wide(lb, bex), pw = make_wide(pl, bex), sw = make_wide(sb, bex);
         const auto pwp = make_wide(plp, bex);
+        const auto lw8 = make_wide<8>(lb, bex), pw8 = make_wide<8>(pl, bex), sw8 = make_wide<8>(sb, bex);
 
         bench::EmbreeBvh elow(build_threads, bench::EmbreeMode::low), emed(build_threads, bench::EmbreeMode::medium);
         elow.update(tris);
@@ -208,6 +214,11 @@ int main(int argc, char** argv) {
         add("ploc wide pre", [&](const Rayf& r) { return intersect(pwp, tris, r).prim; });
         add("ploc binary fast", [&](const Rayf& r) { return intersect<trace::fast>(pl, tris, r).prim; });
         add("ploc wide fast", [&](const Rayf& r) { return intersect<trace::fast>(pw, tris, r).prim; });
+        const std::size_t first_wide8 = methods.size();
+        add("lbvh wide8", [&](const Rayf& r) { return intersect(lw8, tris, r).prim; });
+        add("ploc wide8", [&](const Rayf& r) { return intersect(pw8, tris, r).prim; });
+        add("sah wide8", [&](const Rayf& r) { return intersect(sw8, tris, r).prim; });
+        add("ploc wide8 fast", [&](const Rayf& r) { return intersect<trace::fast>(pw8, tris, r).prim; });
 
         // Agreement: wide vs binary on the same tree (robust: must be identical up to exact ties).
         std::vector<std::uint32_t> a(nrays), b(nrays), e(nrays);
@@ -219,6 +230,11 @@ int main(int argc, char** argv) {
             std::size_t diff = 0;
             for (std::size_t i = 0; i < nrays; ++i) diff += a[i] != b[i];
             agree += " " + methods[m].name.substr(0, methods[m].name.find(' ')) + ":" + std::to_string(diff);
+            // the 8-wide tree of the same binary tree
+            methods[first_wide8 + (m - 2) / 2].trace(gen, build_threads, b);
+            diff = 0;
+            for (std::size_t i = 0; i < nrays; ++i) diff += a[i] != b[i];
+            agree += "/" + std::to_string(diff);
         }
         methods[0].trace(gen, build_threads, e);
         std::size_t emb_diff = 0;
@@ -236,12 +252,16 @@ int main(int argc, char** argv) {
                     m.ms[ti].push_back(ms_since(t0));
                 }
 
-        std::printf("\n== %s: %zu triangles, %zu rays, %.1f%% hit; wide!=binary rays:%s; hit/miss differs from embree-low on %zu rays\n",
+        std::printf("\n== %s: %zu triangles, %zu rays, %.1f%% hit; wide!=binary rays (4-wide/8-wide):%s; hit/miss differs from embree-low on %zu rays\n",
                     sname.c_str(), tris.size(), nrays, 100.0 * double(hits) / double(nrays), agree.c_str(), emb_diff);
         const SahConfig sc3{.ct = 3, .ci = 2};
         std::printf("   SAH binary/wide: lbvh %.2f/%.2f  ploc %.2f/%.2f  sah %.2f/%.2f;  wide nodes (depth) lbvh %zu (%u) ploc %zu (%u) sah %zu (%u)\n",
                     sah_cost(lb, sc3), sah_cost(lw, sc3), sah_cost(pl, sc3), sah_cost(pw, sc3), sah_cost(sb, sc3),
                     sah_cost(sw, sc3), lw.nodes.size(), lw.depth, pw.nodes.size(), pw.depth, sw.nodes.size(), sw.depth);
+        std::printf("   SAH 8-wide: lbvh %.2f  ploc %.2f  sah %.2f;  8-wide nodes (depth) lbvh %zu (%u) ploc %zu (%u) sah %zu (%u); "
+                    "8-wide conversion of lbvh %.3f ms\n",
+                    sah_cost(lw8, sc3), sah_cost(pw8, sc3), sah_cost(sw8, sc3), lw8.nodes.size(), lw8.depth, pw8.nodes.size(),
+                    pw8.depth, sw8.nodes.size(), sw8.depth, median(t_conv8));
         const double ml = median(t_lbvh), mc = median(t_conv), mcp = median(t_conv_ploc);
         const double ml1 = median(t_lbvh1), mc1 = median(t_conv1);
         std::printf("   build (%d threads): lbvh %.2f ms, wide conversion %.3f ms (%.1f%% of lbvh), of ploc tree %.3f ms;"

@@ -11,6 +11,7 @@
 #include <map>
 #include <memory>
 #include <sstream>
+#include <set>
 #include <string>
 #include <variant>
 #include <vector>
@@ -233,7 +234,7 @@ TEST_CASE("study: SAH of a 2-triangle scene is exact, and --info describes it") 
                "0 0 0\n1 0 0\n0 1 0\n100 0 0\n101 0 0\n100 1 0\n3 0 1 2\n3 3 4 5\n";
     }
     const double expected = (3.0 * 202.0 + 8.0) / 202.0;
-    const int rc = run_study("--scenes \"" + (out / "two.ply").string() + "\" --builders lbvh,ploc,kbvh,binned-sah,lbvh:wide=0 --res 16x16 "
+    const int rc = run_study("--scenes \"" + (out / "two.ply").string() + "\" --builders lbvh,ploc:wide=4,kbvh:wide=8,binned-sah,lbvh:wide=0 --res 16x16 "
                              "--images 0 --out \"" + out.string() + "\"",
                              out / "log.txt");
     INFO(read_all(out / "log.txt"));
@@ -241,14 +242,22 @@ TEST_CASE("study: SAH of a 2-triangle scene is exact, and --info describes it") 
     const Json j = JsonParser(read_all(out / "study.json")).parse();
     const auto& results = j["results"].arr();
     REQUIRE(results.size() == 5);
+    std::set<double> default_bytes;
     for (const auto& g : results) {
         INFO(g["builder"].str());
         CHECK(g["per_frame"].arr()[0]["sah"].num() == doctest::Approx(expected).epsilon(1e-12));
         CHECK(g["per_frame"].arr()[0]["triangles"].num() == 2);
-        // the traced tree: one 4-wide node (128 bytes) or 3 binary nodes (32 bytes each), plus 2 references
-        const bool wide = g["builder"].str().find("wide=0") == std::string::npos;
-        CHECK(g["per_frame"].arr()[0]["memory_bytes"].num() == (wide ? 128 : 3 * 32) + 2 * 4);
+        // the traced tree: 3 binary nodes (32 bytes each), one 4-wide node (128 bytes) or one 8-wide node
+        // (256 bytes), plus 2 references; lbvh and binned-sah trace the default width (4, or 8 with AVX)
+        const std::string name = g["builder"].str();
+        const double bytes = g["per_frame"].arr()[0]["memory_bytes"].num() - 2 * 4;
+        if (name.find("wide=0") != std::string::npos) CHECK(bytes == 3 * 32);
+        else if (name.starts_with("ploc")) CHECK(bytes == 128);
+        else if (name.starts_with("kbvh")) CHECK(bytes == 256);
+        else default_bytes.insert(bytes);
     }
+    CHECK(default_bytes.size() == 1);
+    CHECK((default_bytes.count(128) + default_bytes.count(256)) == 1);
 
     const int rc2 = run_study("--info \"" + (out / "two.ply").string() + "\"", out / "info.json");
     REQUIRE(rc2 == 0);

@@ -42,8 +42,8 @@ bool same_bits(double a, double b) { return std::bit_cast<std::uint64_t>(a) == s
 
 /// Independent check of a wide tree against the binary tree it came from and the triangles.
 /// Returns a description of every problem (empty when fine).
-template <class NodeT, class Prim>
-std::string wide_problems(const Bvh<NodeT, Prim>& bvh, const wide_bvh_of<Bvh<NodeT, Prim>>& w,
+template <class NodeT, class Prim, int W>
+std::string wide_problems(const Bvh<NodeT, Prim>& bvh, const WideBvh<typename NodeT::scalar_type, typename NodeT::index_type, Prim, W>& w,
                           std::span<const Triangle<typename NodeT::scalar_type>> tris) {
     using S = typename NodeT::scalar_type;
     std::ostringstream err;
@@ -77,7 +77,7 @@ std::string wide_problems(const Bvh<NodeT, Prim>& bvh, const wide_bvh_of<Bvh<Nod
         const auto& n = w.nodes[id];
         int used = 0;
         bool all_leaves = true;
-        for (int k = 0; k < 4; ++k) {
+        for (int k = 0; k < W; ++k) {
             if (n.empty_slot(k)) {
                 if (n.count[k] != 0) fail("empty slot with a count");
                 continue;
@@ -107,8 +107,8 @@ std::string wide_problems(const Bvh<NodeT, Prim>& bvh, const wide_bvh_of<Bvh<Nod
             }
         }
         if (used < 2 && w.nodes.size() > 1) fail("inner node with fewer than two children");
-        // Greedy collapse: a node is only left with fewer than four children when all of them are leaves.
-        if (used < 4 && !all_leaves) fail("node " + std::to_string(id) + " has " + std::to_string(used) + " children, not all leaves");
+        // Greedy collapse: a node is only left with fewer than W children when all of them are leaves.
+        if (used < W && !all_leaves) fail("node " + std::to_string(id) + " has " + std::to_string(used) + " children, not all leaves");
     }
     for (std::size_t i = 0; i < node_seen.size(); ++i)
         if (!node_seen[i]) fail("node " + std::to_string(i) + " unreachable");
@@ -264,15 +264,18 @@ std::size_t check_exact(const std::vector<Triangle<T>>& tris, std::size_t nrays,
     const auto bi = build.template operator()<prim::indexed>(ts);
     const auto bp = build.template operator()<prim::precomputed>(ts);
     const auto wi = make_wide(bi), wp = make_wide(bp);
+    const auto w8 = make_wide<8>(bi), w8p = make_wide<8>(bp);
     CHECK_MESSAGE(wide_problems(bi, wi, ts) == "", what);
     CHECK_MESSAGE(wide_problems(bp, wp, ts) == "", what);
+    CHECK_MESSAGE(wide_problems(bi, w8, ts) == "", what << " (8-wide)");
+    CHECK_MESSAGE(wide_problems(bp, w8p, ts) == "", what << " (8-wide)");
     std::size_t bad = 0, hits = 0;
     fast_bad = 0;
     for (std::size_t i = 0; i < rays.size(); ++i) {
         const Ray<T>& r = rays[i];
         const Hit<T> e = brute_force_intersect<trace::robust, T>(ts, r);
         hits += e ? 1 : 0;
-        for (const Hit<T>& h : {intersect(wi, ts, r), intersect(wp, ts, r)}) {
+        for (const Hit<T>& h : {intersect(wi, ts, r), intersect(wp, ts, r), intersect(w8, ts, r), intersect(w8p, ts, r)}) {
             if (!same_hit<tri::watertight>(h, e, ts, r)) {
                 if (bad++ < 5) MESSAGE(what << ": " << describe(r, h, e));
             }
@@ -282,15 +285,17 @@ std::size_t check_exact(const std::vector<Triangle<T>>& tris, std::size_t nrays,
         if (!same_hit<tri::watertight>(hw, hb, ts, r)) {
             if (bad++ < 5) MESSAGE(what << " (vs binary): " << describe(r, hw, hb));
         }
-        const bool occ = occluded(wi, ts, r), occ_p = occluded(wp, ts, r);
-        if (occ != bool(e) || occ_p != bool(e) || occ != brute_force_occluded<trace::robust, T>(ts, r)) {
+        const bool occ = occluded(wi, ts, r), occ_p = occluded(wp, ts, r), occ8 = occluded(w8, ts, r);
+        if (occ != bool(e) || occ_p != bool(e) || occ8 != bool(e) || occ != brute_force_occluded<trace::robust, T>(ts, r)) {
             if (bad++ < 5) MESSAGE(what << ": any hit disagrees: " << describe(r, hw, e));
         }
         if (!is_grazing(i)) {
             const Hit<T> ef = brute_force_intersect<trace::fast, T>(ts, r);
             fast_bad += same_hit<tri::moller_trumbore>(intersect<trace::fast>(wi, ts, r), ef, ts, r) ? 0 : 1;
             fast_bad += same_hit<tri::moller_trumbore>(intersect<trace::fast>(wp, ts, r), ef, ts, r) ? 0 : 1;
+            fast_bad += same_hit<tri::moller_trumbore>(intersect<trace::fast>(w8, ts, r), ef, ts, r) ? 0 : 1;
             fast_bad += occluded<trace::fast>(wi, ts, r) == bool(ef) ? 0 : 1;
+            fast_bad += occluded<trace::fast>(w8p, ts, r) == bool(ef) ? 0 : 1;
         }
     }
     MESSAGE(what << ": " << tris.size() << " triangles, " << rays.size() << " rays, " << hits << " hit, wide depth "
@@ -347,15 +352,16 @@ TEST_CASE("wide node layout") {
     }
 }
 
-TEST_CASE("SIMD four-box test equals the scalar box test bit for bit") {
+template <int W>
+void check_simd_box_test() {
     // Random boxes (some flat, some empty) against random rays with +-0 components and origins on
     // box planes: the same hit mask and the same entry distances as box::robust's own test.
     Rng rng(3);
     std::size_t masks = 0, bad = 0;
     for (int i = 0; i < 20000; ++i) {
-        WideNode<> n;
+        WideNode<float, std::uint32_t, W> n;
         n.clear();
-        const int used = 1 + int(rng.next() % 4);
+        const int used = 1 + int(rng.next() % W);
         for (int k = 0; k < used; ++k) {
             Vec3f a{rng.uniform(-2, 2), rng.uniform(-2, 2), rng.uniform(-2, 2)};
             Vec3f b{rng.uniform(-2, 2), rng.uniform(-2, 2), rng.uniform(-2, 2)};
@@ -374,12 +380,12 @@ TEST_CASE("SIMD four-box test equals the scalar box test bit for bit") {
         const box::robust::prepared<float> pr(r);
         detail::dispatch_octant(pr.octant, [&](auto oct) {
             constexpr int O = decltype(oct)::value;
-            float ts[4], tv[4];
+            alignas(32) float ts[W], tv[W];
             const unsigned ms = detail::WideBoxTestScalar<box::robust, float>(pr).test<O>(n, tmax, ts);
-            const unsigned mv = detail::WideBoxTest<box::robust, float>(pr).test<O>(n, tmax, tv);
+            const unsigned mv = detail::WideBoxTest<box::robust, float, W>(pr).test<O>(n, tmax, tv);
             masks += ms != 0;
             bool ok = ms == mv;
-            for (int k = 0; k < 4; ++k)
+            for (int k = 0; k < W; ++k)
                 if (ms >> k & 1) ok = ok && same_bits(ts[k], tv[k]);
             // and each slot agrees with the one-box test the binary traversal uses
             for (int k = 0; k < used; ++k) {
@@ -391,16 +397,24 @@ TEST_CASE("SIMD four-box test equals the scalar box test bit for bit") {
             // Without FMA the fast test is the same arithmetic as well.
             const box::fast::prepared<float> pf(r);
             const unsigned fs = detail::WideBoxTestScalar<box::fast, float>(pf).test<O>(n, tmax, ts);
-            const unsigned fv = detail::WideBoxTest<box::fast, float>(pf).test<O>(n, tmax, tv);
+            const unsigned fv = detail::WideBoxTest<box::fast, float, W>(pf).test<O>(n, tmax, tv);
             ok = ok && fs == fv;
 #endif
             bad += ok ? 0 : 1;
             return 0;
         });
     }
-    MESSAGE(masks << " of 20000 nodes hit");
+    MESSAGE(W << "-wide: " << masks << " of 20000 nodes hit");
     CHECK(masks > 1000);
     CHECK(bad == 0);
+}
+
+TEST_CASE("SIMD box test (SSE; AVX for 8-wide nodes where compiled in) equals the scalar box test bit for bit") {
+    check_simd_box_test<4>();
+    check_simd_box_test<8>();
+#if defined(DYNBVH_WIDE_AVX)
+    MESSAGE("8-wide nodes tested with AVX");
+#endif
 }
 
 #if defined(DYNBVH_WIDE_SSE)
@@ -517,11 +531,19 @@ TEST_CASE("conversion is the same tree on every executor, and keeps every refere
         MESSAGE("binary SAH " << bs << " (" << bvh.nodes.size() << " nodes, depth " << bvh.depth << "), wide SAH " << ws
                               << " (" << ref.nodes.size() << " nodes, depth " << ref.depth << ")");
         CHECK(ws < bs);
+        const auto ref8 = make_wide<8>(bvh, exec::serial{});
+        CHECK(wide_problems(bvh, ref8, ts) == "");
+        CHECK(ref8.depth <= ref.depth);
+        CHECK(sah_cost(ref8, {.ct = 3, .ci = 2}) < ws);
         test::for_each_executor([&](auto ex) {
             const auto w = make_wide(bvh, ex);
             REQUIRE(w.nodes.size() == ref.nodes.size());
             CHECK(w.depth == ref.depth);
             CHECK(std::memcmp(w.nodes.data(), ref.nodes.data(), w.nodes.size() * sizeof(WideNode<>)) == 0);
+            const auto w8 = make_wide<8>(bvh, ex);
+            REQUIRE(w8.nodes.size() == ref8.nodes.size());
+            CHECK(w8.depth == ref8.depth);
+            CHECK(std::memcmp(w8.nodes.data(), ref8.nodes.data(), w8.nodes.size() * sizeof(w8.nodes[0])) == 0);
         });
     }
 }
@@ -614,28 +636,33 @@ TEST_CASE("axis-parallel rays with +-0 components through vertices, from everywh
 
 TEST_CASE("trees deeper than max_depth and a wrong depth field: heap stack, same answers") {
     std::vector<Trianglef> tris;
-    for (int i = 0; i < 300; ++i) {
+    // 600 levels: deeper than max_depth even for 8-wide nodes (about 7 binary levels per node)
+    const int levels = 600;
+    for (int i = 0; i < levels; ++i) {
         const float z = float(i);
         tris.push_back({{-1, -1, z}, {3, -1, z}, {-1, 3, z}});
     }
     const std::span<const Trianglef> ts(tris);
     const auto deep = testing::caterpillar_build<Node<>, prim::indexed>(ts);
-    auto w = make_wide(deep);
-    CHECK(wide_problems(deep, w, ts) == "");
-    MESSAGE("caterpillar: binary depth " << deep.depth << ", wide depth " << w.depth);
-    CHECK(w.depth >= max_depth);
-    const Rayf down{{0.1f, 0.1f, 1000}, {0, 0, -1}}, up{{0.1f, 0.1f, -1000}, {0, 0, 1}};
-    for (int lie = 0; lie < 2; ++lie) {
-        if (lie) w.depth = 2;   // a wrong depth field: the fixed stack overflows into the heap retry
-        const Hitf a = intersect(w, ts, down), b = intersect(w, ts, up);
-        REQUIRE(a);
-        REQUIRE(b);
-        CHECK(a.prim == 299);
-        CHECK(a.t == 1000.0f - 299.0f);
-        CHECK(b.prim == 0);
-        CHECK(b.t == 1000.0f);
-        CHECK(occluded(w, ts, down));
-    }
+    auto check = [&](auto w) {
+        CHECK(wide_problems(deep, w, ts) == "");
+        MESSAGE("caterpillar: binary depth " << deep.depth << ", " << w.width << "-wide depth " << w.depth);
+        CHECK(w.depth >= max_depth);
+        const Rayf down{{0.1f, 0.1f, 1000}, {0, 0, -1}}, up{{0.1f, 0.1f, -1000}, {0, 0, 1}};
+        for (int lie = 0; lie < 2; ++lie) {
+            if (lie) w.depth = 2;   // a wrong depth field: the fixed stack overflows into the heap retry
+            const Hitf a = intersect(w, ts, down), b = intersect(w, ts, up);
+            REQUIRE(a);
+            REQUIRE(b);
+            CHECK(a.prim == std::uint32_t(levels - 1));
+            CHECK(a.t == 1000.0f - float(levels - 1));
+            CHECK(b.prim == 0);
+            CHECK(b.t == 1000.0f);
+            CHECK(occluded(w, ts, down));
+        }
+    };
+    check(make_wide(deep));
+    check(make_wide<8>(deep));
 }
 
 #if defined(DYNBVH_TEST_HAVE_PLY)

@@ -63,7 +63,7 @@ std::string BuilderSpec::name() const {
     if (fast_box) s += ":box=fast";
     if (fast_tri) s += ":tri=mt";
     if (precomputed) s += ":prim=pre";
-    if (!wide) s += ":wide=0";
+    if (wide != d.wide) s += ":wide=" + std::to_string(wide);
     return s;
 }
 
@@ -130,8 +130,8 @@ BuilderSpec parse_builder(const std::string& spec) {
             b.precomputed = v == "pre";
         } else if (key == "wide") {
             if (!ours) reject();
-            if (v != "0" && v != "1") throw std::invalid_argument("builder '" + spec + "': wide must be 0 or 1");
-            b.wide = v == "1";
+            if (v != "0" && v != "4" && v != "8") throw std::invalid_argument("builder '" + spec + "': wide must be 0, 4 or 8");
+            b.wide = v[0] - '0';
         } else {
             reject();
         }

@@ -22,6 +22,14 @@ namespace dynbvh::study {
 enum class Kind { lbvh, kbvh, ploc, binned_sah, refit, embree_low, embree_medium, embree_refit };
 
 /// A builder and its knobs (defaults = the library's defaults = the thesis's settings).
+/// The wide tree the study traces by default: 8-wide when compiled with AVX (one AVX step tests a
+/// node's eight boxes; e.g. tools/study.sh builds with -march=native), else 4-wide (one SSE step).
+#if defined(__AVX__) && !defined(DYNBVH_NO_SIMD)
+inline constexpr int default_wide = 8;
+#else
+inline constexpr int default_wide = 4;
+#endif
+
 struct BuilderSpec {
     Kind kind = Kind::lbvh;
     std::uint32_t radius = 5;      ///< ploc, kbvh: PLOC search radius
@@ -32,7 +40,7 @@ struct BuilderSpec {
     bool fast_box = false;         ///< box::fast instead of box::robust
     bool fast_tri = false;         ///< tri::moller_trumbore instead of tri::watertight
     bool precomputed = false;      ///< prim::precomputed instead of prim::indexed
-    bool wide = true;              ///< trace a 4-wide tree converted from the binary one (wide.hpp; the
+    int wide = default_wide;       ///< trace a 4- or 8-wide tree converted from the binary one (wide.hpp; the
                                    ///< conversion is part of the timed build); wide=0: the binary traversal
 
     bool is_embree() const noexcept { return kind == Kind::embree_low || kind == Kind::embree_medium || kind == Kind::embree_refit; }

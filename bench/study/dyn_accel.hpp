@@ -43,17 +43,20 @@ template <class Exec, class Prim>
 class DynAccel final : public Accel {
 public:
     using BvhT = Bvh<Node<>, Prim>;
-    using WideT = wide_bvh_of<BvhT>;
+    using Wide4 = wide_bvh_of<BvhT, 4>;
+    using Wide8 = wide_bvh_of<BvhT, 8>;
 
     DynAccel(const BuilderSpec& spec, const Exec& ex, const Backend& backend) : spec_(spec), ex_(ex), backend_(backend) {}
 
     void build(std::span<const Trianglef> tris) override {
         previous_ = std::move(bvh_);   // freed untimed in release_previous()
-        previous_wide_ = std::move(wide_);
+        previous_wide4_ = std::move(wide4_);
+        previous_wide8_ = std::move(wide8_);
         build_binary(tris);
-        // The 4-wide tree traced when spec_.wide (timed as part of the build). The binary tree stays
+        // The 4- or 8-wide tree traced when spec_.wide (timed as part of the build). The binary tree stays
         // (refit and the SAH column use it).
-        if (spec_.wide) wide_ = make_wide(bvh_, ex_);
+        if (spec_.wide == 4) wide4_ = make_wide<4>(bvh_, ex_);
+        if (spec_.wide == 8) wide8_ = make_wide<8>(bvh_, ex_);
     }
     void build_binary(std::span<const Trianglef> tris) {
         const LeafConfig leaves{.max_leaf_size = spec_.max_leaf};
@@ -89,7 +92,8 @@ public:
     }
     void release_previous() override {
         previous_ = BvhT{};
-        previous_wide_ = WideT{};
+        previous_wide4_ = Wide4{};
+        previous_wide8_ = Wide8{};
     }
 
     void trace(std::span<const Trianglef> tris, const RayGen& gen, std::span<std::uint32_t> out) override {
@@ -100,16 +104,18 @@ public:
     }
     std::optional<double> sah() const override { return sah_cost(bvh_, SahConfig{.ct = 3, .ci = 2}, ex_); }
     /// The traced tree's bytes (the wide one when spec_.wide).
-    std::optional<std::size_t> memory_bytes() const override { return spec_.wide ? wide_.memory_bytes() : bvh_.memory_bytes(); }
+    std::optional<std::size_t> memory_bytes() const override {
+        return with_tree([](const auto& tree) { return tree.memory_bytes(); });
+    }
     /// Single-ray queries (effect rays) go through the same tree as trace().
     Hitf intersect(std::span<const Trianglef> tris, const Rayf& r) const override {
         return with_policy([&]<class Policy>() {
-            return spec_.wide ? dynbvh::intersect<Policy>(wide_, tris, r) : dynbvh::intersect<Policy>(bvh_, tris, r);
+            return with_tree([&](const auto& tree) { return dynbvh::intersect<Policy>(tree, tris, r); });
         });
     }
     bool occluded(std::span<const Trianglef> tris, const Rayf& r) const override {
         return with_policy([&]<class Policy>() {
-            return spec_.wide ? dynbvh::occluded<Policy>(wide_, tris, r) : dynbvh::occluded<Policy>(bvh_, tris, r);
+            return with_tree([&](const auto& tree) { return dynbvh::occluded<Policy>(tree, tris, r); });
         });
     }
 
@@ -123,22 +129,27 @@ private:
         return f.template operator()<trace::robust>();
     }
 
+    /// f(tree) with the traced tree: the 4- or 8-wide one, or the binary one for wide=0.
+    template <class F>
+    decltype(auto) with_tree(const F& f) const {
+        if (spec_.wide == 8) return f(wide8_);
+        if (spec_.wide == 4) return f(wide4_);
+        return f(bvh_);
+    }
+
     template <class Policy>
     void run(std::span<const Trianglef> tris, const RayGen& gen, std::span<std::uint32_t> out) const {
-        if (spec_.wide) {
-            const WideT& wide = wide_;
-            trace_tiles(backend_, gen, out, [&](const Rayf& r) { return dynbvh::intersect<Policy>(wide, tris, r).prim; });
-            return;
-        }
-        const BvhT& bvh = bvh_;
-        trace_tiles(backend_, gen, out, [&](const Rayf& r) { return dynbvh::intersect<Policy>(bvh, tris, r).prim; });
+        with_tree([&](const auto& tree) {
+            trace_tiles(backend_, gen, out, [&](const Rayf& r) { return dynbvh::intersect<Policy>(tree, tris, r).prim; });
+        });
     }
 
     BuilderSpec spec_;
     const Exec& ex_;
     const Backend& backend_;
     BvhT bvh_, previous_;
-    WideT wide_, previous_wide_;
+    Wide4 wide4_, previous_wide4_;
+    Wide8 wide8_, previous_wide8_;
 };
 
 } // namespace accel_impl

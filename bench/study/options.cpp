@@ -62,8 +62,9 @@ Builders (--builders, comma separated; default: all available)
   embree-low, embree-medium, embree-refit (when built with Embree 3)
   Knobs after a colon: ploc:r=16, kbvh:beta=0.2, lbvh:bits=63, ploc:leaf=4, binned-sah:bins=16,
   ploc:tri=mt (Moller-Trumbore instead of watertight), ploc:box=fast (plain slab test),
-  ploc:prim=pre (leaf triangles copied into the tree), ploc:wide=0 (trace the binary tree instead of
-  the 4-wide one converted from it), e.g. ploc:r=10:leaf=4
+  ploc:prim=pre (leaf triangles copied into the tree), ploc:wide=4 / ploc:wide=8 (trace a 4- or 8-wide
+  tree converted from the binary one; default 8 when built with AVX, else 4), ploc:wide=0 (the binary
+  tree), e.g. ploc:r=10:leaf=4
 
 Options
   --res WxH,...        resolutions (default 854x480,1920x1080,3840x2160)

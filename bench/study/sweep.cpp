@@ -32,7 +32,9 @@ std::vector<SweepSetting> sweep_settings(bool small, bool embree) {
     add("box test", "fast + Moller-Trumbore", "ploc:box=fast:tri=mt", false);
     add("leaf triangles", "indexed", "ploc", false);
     add("leaf triangles", "precomputed", "ploc:prim=pre", false);
-    add("tree layout", "4-wide", "ploc", false);
+    const int other_wide = default_wide == 8 ? 4 : 8;
+    add("tree layout", std::to_string(default_wide) + "-wide", "ploc", false);
+    add("tree layout", std::to_string(other_wide) + "-wide", "ploc:wide=" + std::to_string(other_wide), false);
     add("tree layout", "binary", "ploc:wide=0", false);
     for (const char* b : {"ploc", "lbvh", "kbvh", "binned-sah", "refit"}) add("builder", b, b, false);
     if (embree)

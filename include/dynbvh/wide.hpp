@@ -1,23 +1,24 @@
 /// @file wide.hpp
-/// A 4-wide BVH converted from any binary `Bvh`, and its single-ray traversal.
+/// A 4- or 8-wide BVH converted from any binary `Bvh`, and its single-ray traversal.
 /// @code
 ///   auto bvh  = dynbvh::lbvh::build(tris, {}, ex);
 ///   auto wide = dynbvh::make_wide(std::move(bvh), ex);        // O(n), parallel over `ex` (or copy: make_wide(bvh, ex))
+///   auto w8   = dynbvh::make_wide<8>(other_bvh, ex);          // 8 children per node (best with AVX, see below)
 ///   auto hit  = dynbvh::intersect(wide, tris, ray);           // same answer as intersect(bvh, ...)
 ///   bool occ  = dynbvh::occluded<dynbvh::trace::fast>(wide, tris, ray);
 /// @endcode
 ///
-/// Layout: a `WideNode` holds the boxes of up to four children in structure-of-arrays form
-/// (lo_x[4], hi_x[4], lo_y[4], ...), so one traversal step tests all four boxes with one SIMD
-/// instruction per slab plane. Each child slot is an inner node (count 0, `child` = node index),
+/// Layout: a `WideNode<Scalar, Index, W>` (W = 4 by default, or 8) holds the boxes of up to W children in
+/// structure-of-arrays form (lo_x[W], hi_x[W], lo_y[W], ...), so one traversal step tests all W boxes
+/// with one SIMD instruction per slab plane. Each child slot is an inner node (count 0, `child` = node index),
 /// a leaf (`child` = first slot of prim_ids, `count` references) or empty (an inverted box
 /// +inf/-inf that every box test misses). WideNode<float, uint32_t> is 128 bytes (two cache lines,
-/// 64-byte aligned): 32 bytes per child, as many as a binary node. Leaves, prim_ids and the
+/// 64-byte aligned): 32 bytes per child, as many as a binary node; the 8-wide node is 256 bytes. Leaves, prim_ids and the
 /// precomputed triangles are the binary tree's, unchanged.
 ///
 /// Collapse (after Wald et al. 2008 "Getting rid of packets", and Pinto 2010): each wide node starts
 /// from a binary inner node's two children and repeatedly replaces the inner child of largest surface
-/// area by its two children until it has four children or only leaves. Wide nodes are therefore a
+/// area by its two children until it has W children or only leaves. Wide nodes are therefore a
 /// subset of the binary inner nodes, with their boxes unchanged: leaf boxes and leaf contents are the
 /// binary tree's, and the SAH of the wide tree (`sah_cost(WideBvh)`) has the same leaf term and a
 /// smaller inner term. The conversion collapses the top serially and then 256 subtrees in parallel
@@ -25,13 +26,16 @@
 /// step and should be timed as one (a few tens of percent of an LBVH build, see bench_trace.cpp).
 ///
 /// SIMD: with SSE2 (every x86-64 compiler; `__SSE2__` or MSVC's `_M_X64`) the four box tests of a
-/// node use `<immintrin.h>` SSE intrinsics (FMA for box::fast when the compiler targets it). Every
+/// node use `<immintrin.h>` SSE intrinsics (FMA for box::fast when the compiler targets it); an 8-wide
+/// node takes two SSE steps, or one AVX step when the compiler targets AVX (`__AVX__`, e.g. -mavx2 or
+/// -march=native). Fewer, wider nodes mean fewer traversal steps per ray: on the bunny's primary rays
+/// 2.1 nodes per ray instead of 2.75. Every
 /// other target uses a scalar loop that calls the box policy's own `test_octant` for each slot:
-/// the SSE path performs the same IEEE operations in the same order (max/min operand order chosen so
-/// that NaN and +-0 resolve as in detail::max_keep/min_keep), so both give the same hits. The
+/// the SSE and AVX paths perform the same IEEE operations in the same order (max/min operand order
+/// chosen so that NaN and +-0 resolve as in detail::max_keep/min_keep), so all give the same hits. The
 /// scalar path is also what `-DDYNBVH_NO_SIMD` selects (tests/test_wide.cpp passes either way). The
-/// library does not choose instruction sets: the user's compiler flags do (-march=... enables FMA;
-/// wider AVX nodes are not implemented). For float rays and box::robust, the per-ray setup (finite
+/// library does not choose instruction sets: the user's compiler flags do (-march=... enables FMA
+/// and AVX). For float rays and box::robust, the per-ray setup (finite
 /// and non-degenerate checks, 1 / dir, octant) is also done in SSE when it can give exactly
 /// box::robust::prepared's values (no subnormal direction component), else through that struct. The
 /// triangle test's setup waits for the first leaf: most primary rays of open scenes reach none.
@@ -41,7 +45,7 @@
 /// `brute_force_intersect` returns (t to the bit; an exact tie may name another triangle), and the
 /// same as `intersect(bvh, ...)` on the binary tree. Traversal visits the hit children nearest
 /// first (the others go on a fixed stack with their entry distance and are skipped once a closer hit
-/// is known). The stack holds 3 entries per wide level; a tree deeper than max_depth, or one whose
+/// is known). The stack holds W - 1 entries per wide level; a tree deeper than max_depth, or one whose
 /// `depth` is wrong, is traced with a heap stack that cannot overflow.
 #pragma once
 
@@ -50,7 +54,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <limits>
-#include <optional>
+#include <new>
 #include <span>
 #include <stdexcept>
 #include <string>
@@ -75,21 +79,22 @@ namespace dynbvh {
 /// One node of a 4-wide BVH: the boxes of up to four children, structure of arrays.
 /// Slot k: `count[k] == 0` and a valid box: inner child, node `child[k]`; `count[k] > 0`: leaf of
 /// `count[k]` references from prim_ids slot `child[k]`; inverted box (lo = +inf, hi = -inf): empty.
-template <class Scalar = float, class Index = std::uint32_t>
+template <class Scalar = float, class Index = std::uint32_t, int W = 4>
 struct alignas(64) WideNode {
     static_assert(std::is_floating_point_v<Scalar> && std::is_unsigned_v<Index>);
+    static_assert(W == 4 || W == 8, "wide nodes have 4 or 8 children");
     using scalar_type = Scalar;
     using index_type = Index;
-    static constexpr int width = 4;
+    static constexpr int width = W;
 
-    Scalar lo_x[4], hi_x[4], lo_y[4], hi_y[4], lo_z[4], hi_z[4];
-    Index child[4];
-    Index count[4];
+    Scalar lo_x[W], hi_x[W], lo_y[W], hi_y[W], lo_z[W], hi_z[W];
+    Index child[W];
+    Index count[W];
 
     /// Marks every slot empty.
     constexpr void clear() noexcept {
         constexpr Scalar inf = std::numeric_limits<Scalar>::infinity();
-        for (int k = 0; k < 4; ++k) {
+        for (int k = 0; k < W; ++k) {
             lo_x[k] = lo_y[k] = lo_z[k] = inf;
             hi_x[k] = hi_y[k] = hi_z[k] = -inf;
             child[k] = 0;
@@ -106,18 +111,20 @@ struct alignas(64) WideNode {
     /// Union of the non-empty slots' boxes.
     constexpr AABB<Scalar> bounds() const noexcept {
         AABB<Scalar> b;
-        for (int k = 0; k < 4; ++k)
+        for (int k = 0; k < W; ++k)
             if (!empty_slot(k)) b.extend(bounds(k));
         return b;
     }
 };
 
 static_assert(sizeof(WideNode<>) == 128, "the default wide node is 128 bytes");
+static_assert(sizeof(WideNode<float, std::uint32_t, 8>) == 256, "the 8-wide node is 256 bytes");
 
 /// A 4-wide BVH (see the file comment). Made by `make_wide` from a binary `Bvh`.
-template <class Scalar = float, class Index = std::uint32_t, class PrimPolicy = prim::indexed>
+template <class Scalar = float, class Index = std::uint32_t, class PrimPolicy = prim::indexed, int W = 4>
 struct WideBvh {
-    using node_type = WideNode<Scalar, Index>;
+    using node_type = WideNode<Scalar, Index, W>;
+    static constexpr int width = W;
     using scalar_type = Scalar;
     using index_type = Index;
     using prim_policy = PrimPolicy;
@@ -151,20 +158,20 @@ struct WideBvh {
 };
 
 /// The WideBvh type `make_wide` returns for a binary Bvh type.
-template <class B>
-using wide_bvh_of = WideBvh<typename B::scalar_type, typename B::index_type, typename B::prim_policy>;
+template <class B, int W = 4>
+using wide_bvh_of = WideBvh<typename B::scalar_type, typename B::index_type, typename B::prim_policy, W>;
 
 namespace detail {
 
 /// Opens binary inner node `b` into up to four children `c` (returns how many): starting from its two
 /// children, the inner child of largest surface area is replaced by its two children while fewer than
 /// four and some child is inner.
-template <class NodeT>
+template <int W, class NodeT>
 inline int open_wide(std::span<const NodeT> bin, typename NodeT::index_type b, typename NodeT::index_type* c) {
     c[0] = bin[b].left();
     c[1] = bin[b].right();
     int n = 2;
-    while (n < 4) {
+    while (n < W) {
         int best = -1;
         double best_area = -1;
         for (int k = 0; k < n; ++k) {
@@ -186,11 +193,11 @@ inline int open_wide(std::span<const NodeT> bin, typename NodeT::index_type b, t
 
 /// Writes the wide node for binary inner node `b` into `w`; calls inner(slot, binary child) for each
 /// inner child (the caller sets w.child[slot]).
-template <class NodeT, class Inner>
+template <int W, class NodeT, class Inner>
 inline void fill_wide(std::span<const NodeT> bin, typename NodeT::index_type b,
-                      WideNode<typename NodeT::scalar_type, typename NodeT::index_type>& w, Inner&& inner) {
-    typename NodeT::index_type c[4];
-    const int n = open_wide(bin, b, c);
+                      WideNode<typename NodeT::scalar_type, typename NodeT::index_type, W>& w, Inner&& inner) {
+    typename NodeT::index_type c[W];
+    const int n = open_wide<W>(bin, b, c);
     w.clear();
     for (int k = 0; k < n; ++k) {
         const NodeT& ck = bin[c[k]];
@@ -209,10 +216,10 @@ inline void fill_wide(std::span<const NodeT> bin, typename NodeT::index_type b,
 /// depth first by one task into its own array, and the arrays are concatenated with their child
 /// indices shifted: two parallel steps in all (the cost does not grow with the depth), and the same
 /// result on every executor and thread count.
-template <class NodeT, class Prim, class Exec>
-void collapse_to_wide(const Bvh<NodeT, Prim>& bvh, wide_bvh_of<Bvh<NodeT, Prim>>& wide, const Exec& ex) {
+template <int W, class NodeT, class Prim, class Exec>
+void collapse_to_wide(const Bvh<NodeT, Prim>& bvh, wide_bvh_of<Bvh<NodeT, Prim>, W>& wide, const Exec& ex) {
     using Index = typename NodeT::index_type;
-    using WNode = WideNode<typename NodeT::scalar_type, Index>;
+    using WNode = WideNode<typename NodeT::scalar_type, Index, W>;
     const std::span<const NodeT> bin(bvh.nodes);
     wide.nodes.clear();
     wide.depth = 0;
@@ -241,7 +248,7 @@ void collapse_to_wide(const Bvh<NodeT, Prim>& bvh, wide_bvh_of<Bvh<NodeT, Prim>>
     auto expand_top = [&](Index b, std::uint32_t depth) {
         const Index id = Index(top.size());
         top.emplace_back();
-        fill_wide(bin, b, top.back(), [&](int slot, Index c) { queue.push_back({c, id, slot, depth + 1}); });
+        fill_wide<W>(bin, b, top.back(), [&](int slot, Index c) { queue.push_back({c, id, slot, depth + 1}); });
         wide.depth = std::max(wide.depth, depth);
         return id;
     };
@@ -263,7 +270,7 @@ void collapse_to_wide(const Bvh<NodeT, Prim>& bvh, wide_bvh_of<Bvh<NodeT, Prim>>
             std::uint32_t depth;
         };
         std::vector<Todo> todo;
-        todo.reserve(4 * std::size_t(max_depth));
+        todo.reserve(std::size_t(W) * std::size_t(max_depth));
         out.emplace_back();
         todo.push_back({p.bin, 0, p.depth});
         std::uint32_t deepest = p.depth;
@@ -272,7 +279,7 @@ void collapse_to_wide(const Bvh<NodeT, Prim>& bvh, wide_bvh_of<Bvh<NodeT, Prim>>
             todo.pop_back();
             deepest = std::max(deepest, t.depth);
             WNode w;
-            fill_wide(bin, t.bin, w, [&](int slot, Index c) {
+            fill_wide<W>(bin, t.bin, w, [&](int slot, Index c) {
                 w.child[slot] = Index(out.size());   // local index, shifted when concatenated
                 out.emplace_back();
                 todo.push_back({c, w.child[slot], t.depth + 1});
@@ -297,7 +304,7 @@ void collapse_to_wide(const Bvh<NodeT, Prim>& bvh, wide_bvh_of<Bvh<NodeT, Prim>>
         WNode* dst = wide.nodes.data() + base[k];
         for (const WNode& w : local[k]) {
             *dst = w;
-            for (int s = 0; s < 4; ++s)
+            for (int s = 0; s < W; ++s)
                 if (dst->count[s] == 0 && !dst->empty_slot(s)) dst->child[s] += shift;
             ++dst;
         }
@@ -310,10 +317,10 @@ void collapse_to_wide(const Bvh<NodeT, Prim>& bvh, wide_bvh_of<Bvh<NodeT, Prim>>
 /// Converts a binary BVH into a 4-wide one (see the file comment): the same leaves, wide nodes
 /// collapsed greedily by surface area. prim_ids and leaf_triangles are copied. O(nodes), parallel
 /// over `ex`.
-template <class NodeT, class Prim, class Exec = exec::serial>
-wide_bvh_of<Bvh<NodeT, Prim>> make_wide(const Bvh<NodeT, Prim>& bvh, const Exec& ex = {}) {
-    wide_bvh_of<Bvh<NodeT, Prim>> w;
-    detail::collapse_to_wide(bvh, w, ex);
+template <int W = 4, class NodeT, class Prim, class Exec = exec::serial>
+wide_bvh_of<Bvh<NodeT, Prim>, W> make_wide(const Bvh<NodeT, Prim>& bvh, const Exec& ex = {}) {
+    wide_bvh_of<Bvh<NodeT, Prim>, W> w;
+    detail::collapse_to_wide<W>(bvh, w, ex);
     w.prim_ids = bvh.prim_ids;
     w.leaf_triangles = bvh.leaf_triangles;
     w.primitive_count = bvh.primitive_count;
@@ -323,10 +330,10 @@ wide_bvh_of<Bvh<NodeT, Prim>> make_wide(const Bvh<NodeT, Prim>& bvh, const Exec&
 
 /// As above, taking over prim_ids and leaf_triangles instead of copying them (the binary tree is
 /// left empty).
-template <class NodeT, class Prim, class Exec = exec::serial>
-wide_bvh_of<Bvh<NodeT, Prim>> make_wide(Bvh<NodeT, Prim>&& bvh, const Exec& ex = {}) {
-    wide_bvh_of<Bvh<NodeT, Prim>> w;
-    detail::collapse_to_wide(bvh, w, ex);
+template <int W = 4, class NodeT, class Prim, class Exec = exec::serial>
+wide_bvh_of<Bvh<NodeT, Prim>, W> make_wide(Bvh<NodeT, Prim>&& bvh, const Exec& ex = {}) {
+    wide_bvh_of<Bvh<NodeT, Prim>, W> w;
+    detail::collapse_to_wide<W>(bvh, w, ex);
     w.prim_ids = std::move(bvh.prim_ids);
     w.leaf_triangles = std::move(bvh.leaf_triangles);
     w.primitive_count = bvh.primitive_count;
@@ -340,19 +347,19 @@ wide_bvh_of<Bvh<NodeT, Prim>> make_wide(Bvh<NodeT, Prim>&& bvh, const Exec& ex =
 /// where SA(node) is the area of the union of its children's boxes (one visit tests all of them).
 /// The leaf term equals the binary tree's; the inner term sums a subset of its inner nodes.
 /// Degenerate roots as in sah_cost(Bvh). O(nodes), parallel over `ex`.
-template <class S, class I, class P, class Exec = exec::serial>
-double sah_cost(const WideBvh<S, I, P>& wide, const SahConfig& cfg = {}, const Exec& ex = {}) {
+template <class S, class I, class P, int W, class Exec = exec::serial>
+double sah_cost(const WideBvh<S, I, P, W>& wide, const SahConfig& cfg = {}, const Exec& ex = {}) {
     if (wide.nodes.empty()) return 0.0;
     const auto& nodes = wide.nodes;
     const detail::SahSums s = ex.reduce(
         std::size_t(0), nodes.size(), detail::SahSums{},
         [&](std::size_t i) {
-            const WideNode<S, I>& n = nodes[i];
+            const WideNode<S, I, W>& n = nodes[i];
             const AABB<S> b = n.bounds();
             detail::SahSums r;
             r.inner = detail::box_area(b.min, b.max);
             r.inner_n = 1;
-            for (int k = 0; k < 4; ++k) {
+            for (int k = 0; k < W; ++k) {
                 if (n.empty_slot(k) || !n.is_leaf(k)) continue;
                 const AABB<S> c = n.bounds(k);
                 r.leaf += detail::box_area(c.min, c.max) * double(n.count[k]);
@@ -369,18 +376,18 @@ double sah_cost(const WideBvh<S, I, P>& wide, const SahConfig& cfg = {}, const E
 
 namespace detail {
 
-/// Four box tests at once: a bit mask of the slots hit within [tmin, tmax] and their entry distances
+/// W box tests at once: a bit mask of the slots hit within [tmin, tmax] and their entry distances
 /// (tmax and the distances in the box policy's units, t * p.t_scale, as its test_octant).
 /// This portable version runs the box policy's own test_octant on each slot; WideBoxTest is the
-/// version traversal uses (SSE for float where available, else this one).
+/// version traversal uses (SSE, or AVX for 8-wide nodes, for float where available, else this one).
 template <class Box, class T>
 struct WideBoxTestScalar {
     using prepared = typename Box::template prepared<T>;
     explicit WideBoxTestScalar(const prepared& p) noexcept : p_(p) {}
-    template <int Oct, class I>
-    DYNBVH_ALWAYS_INLINE unsigned test(const WideNode<T, I>& n, T tmax, T* tentry) const noexcept {
+    template <int Oct, class I, int W>
+    DYNBVH_ALWAYS_INLINE unsigned test(const WideNode<T, I, W>& n, T tmax, T* tentry) const noexcept {
         unsigned mask = 0;
-        for (int k = 0; k < 4; ++k) {
+        for (int k = 0; k < W; ++k) {
             const Vec3<T> lo{n.lo_x[k], n.lo_y[k], n.lo_z[k]}, hi{n.hi_x[k], n.hi_y[k], n.hi_z[k]};
             mask |= Box::template test_octant<Oct>(p_, lo, hi, tmax, tentry[k]) ? 1u << k : 0u;
         }
@@ -391,17 +398,18 @@ private:
     prepared p_;
 };
 
-template <class Box, class T>
+template <class Box, class T, int W = 4>
 struct WideBoxTest : WideBoxTestScalar<Box, T> {
     using WideBoxTestScalar<Box, T>::WideBoxTestScalar;
 };
 
 #if defined(DYNBVH_WIDE_SSE)
 // _mm_max_ps(x, acc) == (x > acc ? x : acc) == max_keep(acc, x), including NaN x and +-0;
-// _mm_min_ps(x, acc) == (x < acc ? x : acc) == min_keep(acc, x).
+// _mm_min_ps(x, acc) == (x < acc ? x : acc) == min_keep(acc, x). The AVX forms behave alike.
 
-template <>
-struct WideBoxTest<box::robust, float> {
+/// SSE, four slots per step (an 8-wide node takes two steps).
+template <int W>
+struct WideBoxTest<box::robust, float, W> {
     using prepared = box::robust::prepared<float>;
     explicit WideBoxTest(const prepared& p) noexcept
         : ox(_mm_set1_ps(p.org.x)), oy(_mm_set1_ps(p.org.y)), oz(_mm_set1_ps(p.org.z)), ix(_mm_set1_ps(p.inv.x)),
@@ -433,47 +441,53 @@ struct WideBoxTest<box::robust, float> {
         tmin = _mm_set1_ps(r.tmin);
     }
     template <int Oct, class I>
-    DYNBVH_ALWAYS_INLINE unsigned test(const WideNode<float, I>& n, float tmax, float* tentry) const noexcept {
-        const __m128 x0 = _mm_mul_ps(_mm_sub_ps(_mm_load_ps(Oct & 1 ? n.hi_x : n.lo_x), ox), ix);
-        const __m128 x1 = _mm_mul_ps(_mm_sub_ps(_mm_load_ps(Oct & 1 ? n.lo_x : n.hi_x), ox), ix);
-        const __m128 y0 = _mm_mul_ps(_mm_sub_ps(_mm_load_ps(Oct & 2 ? n.hi_y : n.lo_y), oy), iy);
-        const __m128 y1 = _mm_mul_ps(_mm_sub_ps(_mm_load_ps(Oct & 2 ? n.lo_y : n.hi_y), oy), iy);
-        const __m128 z0 = _mm_mul_ps(_mm_sub_ps(_mm_load_ps(Oct & 4 ? n.hi_z : n.lo_z), oz), iz);
-        const __m128 z1 = _mm_mul_ps(_mm_sub_ps(_mm_load_ps(Oct & 4 ? n.lo_z : n.hi_z), oz), iz);
-        const __m128 tn = _mm_max_ps(z0, _mm_max_ps(y0, _mm_max_ps(x0, tmin)));
-        __m128 tf = _mm_min_ps(z1, _mm_min_ps(y1, _mm_min_ps(x1, _mm_set1_ps(tmax))));
-        // box::robust::widen: tf + 2 gamma(3) |tf|
-        const __m128 abs_tf = _mm_andnot_ps(_mm_set1_ps(-0.0f), tf);
-        tf = _mm_add_ps(tf, _mm_mul_ps(_mm_set1_ps(2.0f * rounding_gamma<float>(3)), abs_tf));
-        _mm_storeu_ps(tentry, tn);
-        return unsigned(_mm_movemask_ps(_mm_cmple_ps(tn, tf)));
+    DYNBVH_ALWAYS_INLINE unsigned test(const WideNode<float, I, W>& n, float tmax, float* tentry) const noexcept {
+        unsigned mask = 0;
+        for (int h = 0; h < W; h += 4) {
+            const __m128 x0 = _mm_mul_ps(_mm_sub_ps(_mm_load_ps((Oct & 1 ? n.hi_x : n.lo_x) + h), ox), ix);
+            const __m128 x1 = _mm_mul_ps(_mm_sub_ps(_mm_load_ps((Oct & 1 ? n.lo_x : n.hi_x) + h), ox), ix);
+            const __m128 y0 = _mm_mul_ps(_mm_sub_ps(_mm_load_ps((Oct & 2 ? n.hi_y : n.lo_y) + h), oy), iy);
+            const __m128 y1 = _mm_mul_ps(_mm_sub_ps(_mm_load_ps((Oct & 2 ? n.lo_y : n.hi_y) + h), oy), iy);
+            const __m128 z0 = _mm_mul_ps(_mm_sub_ps(_mm_load_ps((Oct & 4 ? n.hi_z : n.lo_z) + h), oz), iz);
+            const __m128 z1 = _mm_mul_ps(_mm_sub_ps(_mm_load_ps((Oct & 4 ? n.lo_z : n.hi_z) + h), oz), iz);
+            const __m128 tn = _mm_max_ps(z0, _mm_max_ps(y0, _mm_max_ps(x0, tmin)));
+            __m128 tf = _mm_min_ps(z1, _mm_min_ps(y1, _mm_min_ps(x1, _mm_set1_ps(tmax))));
+            // box::robust::widen: tf + 2 gamma(3) |tf|
+            const __m128 abs_tf = _mm_andnot_ps(_mm_set1_ps(-0.0f), tf);
+            tf = _mm_add_ps(tf, _mm_mul_ps(_mm_set1_ps(2.0f * rounding_gamma<float>(3)), abs_tf));
+            _mm_storeu_ps(tentry + h, tn);
+            mask |= unsigned(_mm_movemask_ps(_mm_cmple_ps(tn, tf))) << h;
+        }
+        return mask;
     }
 
-private:
     __m128 ox, oy, oz, ix, iy, iz, tmin;
 };
 
-template <>
-struct WideBoxTest<box::fast, float> {
+template <int W>
+struct WideBoxTest<box::fast, float, W> {
     using prepared = box::fast::prepared<float>;
     explicit WideBoxTest(const prepared& p) noexcept
         : ix(_mm_set1_ps(p.inv.x)), iy(_mm_set1_ps(p.inv.y)), iz(_mm_set1_ps(p.inv.z)), oix(_mm_set1_ps(p.org_inv.x)),
           oiy(_mm_set1_ps(p.org_inv.y)), oiz(_mm_set1_ps(p.org_inv.z)), tmin(_mm_set1_ps(p.tmin)) {}
     template <int Oct, class I>
-    DYNBVH_ALWAYS_INLINE unsigned test(const WideNode<float, I>& n, float tmax, float* tentry) const noexcept {
-        const __m128 x0 = slab(_mm_load_ps(Oct & 1 ? n.hi_x : n.lo_x), ix, oix);
-        const __m128 x1 = slab(_mm_load_ps(Oct & 1 ? n.lo_x : n.hi_x), ix, oix);
-        const __m128 y0 = slab(_mm_load_ps(Oct & 2 ? n.hi_y : n.lo_y), iy, oiy);
-        const __m128 y1 = slab(_mm_load_ps(Oct & 2 ? n.lo_y : n.hi_y), iy, oiy);
-        const __m128 z0 = slab(_mm_load_ps(Oct & 4 ? n.hi_z : n.lo_z), iz, oiz);
-        const __m128 z1 = slab(_mm_load_ps(Oct & 4 ? n.lo_z : n.hi_z), iz, oiz);
-        const __m128 tn = _mm_max_ps(z0, _mm_max_ps(y0, _mm_max_ps(x0, tmin)));
-        const __m128 tf = _mm_min_ps(z1, _mm_min_ps(y1, _mm_min_ps(x1, _mm_set1_ps(tmax))));
-        _mm_storeu_ps(tentry, tn);
-        return unsigned(_mm_movemask_ps(_mm_cmple_ps(tn, tf)));
+    DYNBVH_ALWAYS_INLINE unsigned test(const WideNode<float, I, W>& n, float tmax, float* tentry) const noexcept {
+        unsigned mask = 0;
+        for (int h = 0; h < W; h += 4) {
+            const __m128 x0 = slab(_mm_load_ps((Oct & 1 ? n.hi_x : n.lo_x) + h), ix, oix);
+            const __m128 x1 = slab(_mm_load_ps((Oct & 1 ? n.lo_x : n.hi_x) + h), ix, oix);
+            const __m128 y0 = slab(_mm_load_ps((Oct & 2 ? n.hi_y : n.lo_y) + h), iy, oiy);
+            const __m128 y1 = slab(_mm_load_ps((Oct & 2 ? n.lo_y : n.hi_y) + h), iy, oiy);
+            const __m128 z0 = slab(_mm_load_ps((Oct & 4 ? n.hi_z : n.lo_z) + h), iz, oiz);
+            const __m128 z1 = slab(_mm_load_ps((Oct & 4 ? n.lo_z : n.hi_z) + h), iz, oiz);
+            const __m128 tn = _mm_max_ps(z0, _mm_max_ps(y0, _mm_max_ps(x0, tmin)));
+            const __m128 tf = _mm_min_ps(z1, _mm_min_ps(y1, _mm_min_ps(x1, _mm_set1_ps(tmax))));
+            _mm_storeu_ps(tentry + h, tn);
+            mask |= unsigned(_mm_movemask_ps(_mm_cmple_ps(tn, tf))) << h;
+        }
+        return mask;
     }
 
-private:
     static DYNBVH_ALWAYS_INLINE __m128 slab(__m128 plane, __m128 inv, __m128 org_inv) noexcept {
 #if defined(__FMA__)
         return _mm_fmsub_ps(plane, inv, org_inv);
@@ -483,7 +497,75 @@ private:
     }
     __m128 ix, iy, iz, oix, oiy, oiz, tmin;
 };
+
+#if defined(__AVX__)
+#define DYNBVH_WIDE_AVX 1
+/// AVX, eight slots in one step: the SSE test's operations on 256-bit registers, in the same order.
+inline __m256 wide_dup(__m128 x) noexcept { return _mm256_insertf128_ps(_mm256_castps128_ps256(x), x, 1); }
+
+template <>
+struct WideBoxTest<box::robust, float, 8> {
+    using prepared = box::robust::prepared<float>;
+    using Half = WideBoxTest<box::robust, float, 4>;
+    explicit WideBoxTest(const prepared& p) noexcept : WideBoxTest(Half(p)) {}
+    /// As the SSE form (same values, same `ok`).
+    WideBoxTest(const Ray<float>& r, bool& ok, int& octant) noexcept : WideBoxTest(Half(r, ok, octant)) {}
+    template <int Oct, class I>
+    DYNBVH_ALWAYS_INLINE unsigned test(const WideNode<float, I, 8>& n, float tmax, float* tentry) const noexcept {
+        const __m256 x0 = _mm256_mul_ps(_mm256_sub_ps(_mm256_load_ps(Oct & 1 ? n.hi_x : n.lo_x), ox), ix);
+        const __m256 x1 = _mm256_mul_ps(_mm256_sub_ps(_mm256_load_ps(Oct & 1 ? n.lo_x : n.hi_x), ox), ix);
+        const __m256 y0 = _mm256_mul_ps(_mm256_sub_ps(_mm256_load_ps(Oct & 2 ? n.hi_y : n.lo_y), oy), iy);
+        const __m256 y1 = _mm256_mul_ps(_mm256_sub_ps(_mm256_load_ps(Oct & 2 ? n.lo_y : n.hi_y), oy), iy);
+        const __m256 z0 = _mm256_mul_ps(_mm256_sub_ps(_mm256_load_ps(Oct & 4 ? n.hi_z : n.lo_z), oz), iz);
+        const __m256 z1 = _mm256_mul_ps(_mm256_sub_ps(_mm256_load_ps(Oct & 4 ? n.lo_z : n.hi_z), oz), iz);
+        const __m256 tn = _mm256_max_ps(z0, _mm256_max_ps(y0, _mm256_max_ps(x0, tmin)));
+        __m256 tf = _mm256_min_ps(z1, _mm256_min_ps(y1, _mm256_min_ps(x1, _mm256_set1_ps(tmax))));
+        const __m256 abs_tf = _mm256_andnot_ps(_mm256_set1_ps(-0.0f), tf);
+        tf = _mm256_add_ps(tf, _mm256_mul_ps(_mm256_set1_ps(2.0f * rounding_gamma<float>(3)), abs_tf));
+        _mm256_storeu_ps(tentry, tn);
+        return unsigned(_mm256_movemask_ps(_mm256_cmp_ps(tn, tf, _CMP_LE_OQ)));
+    }
+
+private:
+    explicit WideBoxTest(const Half& h) noexcept
+        : ox(wide_dup(h.ox)), oy(wide_dup(h.oy)), oz(wide_dup(h.oz)), ix(wide_dup(h.ix)), iy(wide_dup(h.iy)),
+          iz(wide_dup(h.iz)), tmin(wide_dup(h.tmin)) {}
+    __m256 ox, oy, oz, ix, iy, iz, tmin;
+};
+
+template <>
+struct WideBoxTest<box::fast, float, 8> {
+    using prepared = box::fast::prepared<float>;
+    explicit WideBoxTest(const prepared& p) noexcept
+        : ix(_mm256_set1_ps(p.inv.x)), iy(_mm256_set1_ps(p.inv.y)), iz(_mm256_set1_ps(p.inv.z)),
+          oix(_mm256_set1_ps(p.org_inv.x)), oiy(_mm256_set1_ps(p.org_inv.y)), oiz(_mm256_set1_ps(p.org_inv.z)),
+          tmin(_mm256_set1_ps(p.tmin)) {}
+    template <int Oct, class I>
+    DYNBVH_ALWAYS_INLINE unsigned test(const WideNode<float, I, 8>& n, float tmax, float* tentry) const noexcept {
+        const __m256 x0 = slab(_mm256_load_ps(Oct & 1 ? n.hi_x : n.lo_x), ix, oix);
+        const __m256 x1 = slab(_mm256_load_ps(Oct & 1 ? n.lo_x : n.hi_x), ix, oix);
+        const __m256 y0 = slab(_mm256_load_ps(Oct & 2 ? n.hi_y : n.lo_y), iy, oiy);
+        const __m256 y1 = slab(_mm256_load_ps(Oct & 2 ? n.lo_y : n.hi_y), iy, oiy);
+        const __m256 z0 = slab(_mm256_load_ps(Oct & 4 ? n.hi_z : n.lo_z), iz, oiz);
+        const __m256 z1 = slab(_mm256_load_ps(Oct & 4 ? n.lo_z : n.hi_z), iz, oiz);
+        const __m256 tn = _mm256_max_ps(z0, _mm256_max_ps(y0, _mm256_max_ps(x0, tmin)));
+        const __m256 tf = _mm256_min_ps(z1, _mm256_min_ps(y1, _mm256_min_ps(x1, _mm256_set1_ps(tmax))));
+        _mm256_storeu_ps(tentry, tn);
+        return unsigned(_mm256_movemask_ps(_mm256_cmp_ps(tn, tf, _CMP_LE_OQ)));
+    }
+
+private:
+    static DYNBVH_ALWAYS_INLINE __m256 slab(__m256 plane, __m256 inv, __m256 org_inv) noexcept {
+#if defined(__FMA__)
+        return _mm256_fmsub_ps(plane, inv, org_inv);
+#else
+        return _mm256_sub_ps(_mm256_mul_ps(plane, inv), org_inv);
 #endif
+    }
+    __m256 ix, iy, iz, oix, oiy, oiz, tmin;
+};
+#endif  // __AVX__
+#endif  // DYNBVH_WIDE_SSE
 
 template <class Index, class T>
 struct WideStackEntry {
@@ -495,20 +577,28 @@ struct WideStackEntry {
 /// The wide traversal loop for one direction octant; same contract as traverse_octant (traverse.hpp).
 /// Box distances are in box::robust's units (t * t_scale). The triangle test's per-ray setup is
 /// done when the first leaf is reached: most primary rays of an open scene never reach one.
-template <class Policy, bool AnyHit, int Oct, class S, class I, class P>
-bool wide_traverse_octant(const WideBvh<S, I, P>& bvh, std::span<const Triangle<S>> tris, const Ray<S>& ray,
+template <class Policy, bool AnyHit, int Oct, class S, class I, class P, int W>
+bool wide_traverse_octant(const WideBvh<S, I, P, W>& bvh, std::span<const Triangle<S>> tris, const Ray<S>& ray,
                           const S t_scale,
-                          const WideBoxTest<typename Policy::box_test, S> wb, Hit<S>& hit,
+                          const WideBoxTest<typename Policy::box_test, S, W> wb, Hit<S>& hit,
                           WideStackEntry<I, S>* const stack, const std::size_t cap) {
     using Box = typename Policy::box_test;
     using Tri = typename Policy::triangle_test;
     using Entry = WideStackEntry<I, S>;
-    using WB = WideBvh<S, I, P>;
+    using WB = WideBvh<S, I, P, W>;
 
-    const WideNode<S, I>* const nodes = bvh.nodes.data();
+    const WideNode<S, I, W>* const nodes = bvh.nodes.data();
     const I* const ids = bvh.prim_ids.data();
     const Triangle<S>* const leaf_tris = WB::precomputed ? bvh.leaf_triangles.data() : tris.data();
-    std::optional<typename Tri::template prepared<S>> pt;
+    // The triangle test's setup, made at the first leaf. (Not std::optional: GCC zero-fills its storage
+    // with `rep stos` on every ray, a tenth of a primary ray's cost when most rays reach no leaf.)
+    using TriPrepared = typename Tri::template prepared<S>;
+    static_assert(std::is_trivially_destructible_v<TriPrepared>);
+    union LazyPrepared {
+        LazyPrepared() noexcept {}
+        TriPrepared value;
+    } pt;
+    bool have_pt = false;
 
     S tmax = ray.tmax;
     S tbox = tmax * t_scale;   // tmax in box units
@@ -517,8 +607,8 @@ bool wide_traverse_octant(const WideBvh<S, I, P>& bvh, std::span<const Triangle<
     I cur = 0, cur_count = 0;
     for (;;) {
         if (cur_count == 0) {
-            const WideNode<S, I>& n = nodes[cur];
-            alignas(16) S t[4];
+            const WideNode<S, I, W>& n = nodes[cur];
+            alignas(32) S t[W];
             unsigned mask = wb.template test<Oct>(n, tbox, t);
             if (mask != 0) {
                 const int a = std::countr_zero(mask);
@@ -539,12 +629,11 @@ bool wide_traverse_octant(const WideBvh<S, I, P>& bvh, std::span<const Triangle<
                     cur_count = n.count[near];
                     continue;
                 }
-                // Three or four: sort by entry distance, push all but the nearest, farthest first.
-                if (sp + 3 > cap) [[unlikely]] return false;
-                int order[4] = {a, b, std::countr_zero(mask), 0};
-                mask &= mask - 1;
-                int m = 3;
-                if (mask != 0) order[m++] = std::countr_zero(mask);
+                // Three or more: sort by entry distance, push all but the nearest, farthest first.
+                if (sp + (W - 1) > cap) [[unlikely]] return false;
+                int order[W] = {a, b};
+                int m = 2;
+                for (; mask != 0; mask &= mask - 1) order[m++] = std::countr_zero(mask);
                 for (int i = 1; i < m; ++i)
                     for (int j = i; j > 0 && t[order[j]] < t[order[j - 1]]; --j) std::swap(order[j], order[j - 1]);
                 for (int i = m - 1; i > 0; --i) stack[sp++] = Entry{n.child[order[i]], n.count[order[i]], t[order[i]]};
@@ -553,8 +642,11 @@ bool wide_traverse_octant(const WideBvh<S, I, P>& bvh, std::span<const Triangle<
                 continue;
             }
         } else {
-            if (!pt) [[unlikely]] pt.emplace(ray);
-            if (test_leaf<Tri, AnyHit, WB::precomputed>(*pt, leaf_tris, ids, cur, std::size_t(cur) + cur_count, t_scale, tmax,
+            if (!have_pt) [[unlikely]] {
+                ::new (static_cast<void*>(&pt.value)) TriPrepared(ray);
+                have_pt = true;
+            }
+            if (test_leaf<Tri, AnyHit, WB::precomputed>(pt.value, leaf_tris, ids, cur, std::size_t(cur) + cur_count, t_scale, tmax,
                                                         tbox, best_slot, hit))
                 return true;
         }
@@ -575,50 +667,50 @@ bool wide_traverse_octant(const WideBvh<S, I, P>& bvh, std::span<const Triangle<
 }
 
 /// Stack and octant dispatch around wide_traverse_octant for a prepared ray.
-template <class Policy, bool AnyHit, class S, class I, class P>
-Hit<S> wide_run(const WideBvh<S, I, P>& bvh, std::span<const Triangle<S>> tris, const Ray<S>& ray,
-                const WideBoxTest<typename Policy::box_test, S>& wb, S t_scale, int octant) {
+template <class Policy, bool AnyHit, class S, class I, class P, int W>
+Hit<S> wide_run(const WideBvh<S, I, P, W>& bvh, std::span<const Triangle<S>> tris, const Ray<S>& ray,
+                const WideBoxTest<typename Policy::box_test, S, W>& wb, S t_scale, int octant) {
     using Entry = WideStackEntry<I, S>;
     auto run = [&](Entry* stack, std::size_t cap, Hit<S>& hit) {
         return dispatch_octant(octant, [&](auto oct) {
             return wide_traverse_octant<Policy, AnyHit, decltype(oct)::value>(bvh, tris, ray, t_scale, wb, hit, stack, cap);
         });
     };
-    // At most 3 entries per wide level: wide depth < binary depth <= max_depth.
-    constexpr std::size_t fixed_cap = 3 * std::size_t(max_depth);
+    // At most W - 1 entries per wide level: wide depth < binary depth <= max_depth.
+    constexpr std::size_t fixed_cap = std::size_t(W - 1) * std::size_t(max_depth);
     if (bvh.depth < max_depth) {
         Entry stack[fixed_cap];
         Hit<S> hit;
         if (run(stack, fixed_cap, hit)) [[likely]] return hit;
     }
-    // Each node's children are pushed at most once: 3 entries per node bound any traversal.
-    std::vector<Entry> heap(3 * bvh.nodes.size() + 3);
+    // Each node's children are pushed at most once: W - 1 entries per node bound any traversal.
+    std::vector<Entry> heap(std::size_t(W - 1) * (bvh.nodes.size() + 1));
     Hit<S> hit;
     run(heap.data(), heap.size(), hit);
     return hit;
 }
 
-template <class Policy, bool AnyHit, class S, class I, class P>
-Hit<S> wide_traverse(const WideBvh<S, I, P>& bvh, std::span<const Triangle<S>> tris, const Ray<S>& ray) {
+template <class Policy, bool AnyHit, class S, class I, class P, int W>
+Hit<S> wide_traverse(const WideBvh<S, I, P, W>& bvh, std::span<const Triangle<S>> tris, const Ray<S>& ray) {
     using Box = typename Policy::box_test;
     if (bvh.nodes.empty()) return {};
 #if defined(DYNBVH_WIDE_SSE)
     if constexpr (std::is_same_v<Box, box::robust> && std::is_same_v<S, float>) {
         bool ok;
         int octant;
-        const WideBoxTest<Box, S> wb(ray, ok, octant);
+        const WideBoxTest<Box, S, W> wb(ray, ok, octant);
         if (ok) [[likely]] return wide_run<Policy, AnyHit>(bvh, tris, ray, wb, S(1), octant);
     }
 #endif
     // No separate traceable() check: the prepared ray of a ray that is not traceable has a NaN tmin,
     // so every box test misses and no leaf is reached (tests cover it).
     const typename Box::template prepared<S> pb(ray);
-    return wide_run<Policy, AnyHit>(bvh, tris, ray, WideBoxTest<Box, S>(pb), pb.t_scale, pb.octant);
+    return wide_run<Policy, AnyHit>(bvh, tris, ray, WideBoxTest<Box, S, W>(pb), pb.t_scale, pb.octant);
 }
 
-template <class S, class I, class P>
-void check_triangles(const WideBvh<S, I, P>& bvh, std::size_t given, const char* fn) {
-    if constexpr (!WideBvh<S, I, P>::precomputed) {
+template <class S, class I, class P, int W>
+void check_triangles(const WideBvh<S, I, P, W>& bvh, std::size_t given, const char* fn) {
+    if constexpr (!WideBvh<S, I, P, W>::precomputed) {
         if (given < bvh.primitive_count)
             throw std::invalid_argument(std::string("dynbvh::") + fn + ": the triangle span has " + std::to_string(given) +
                                         " triangles but the BVH was built over " + std::to_string(bvh.primitive_count));
@@ -628,16 +720,16 @@ void check_triangles(const WideBvh<S, I, P>& bvh, std::size_t given, const char*
 } // namespace detail
 
 /// Closest hit in a wide BVH; same contract as intersect(Bvh, ...) in traverse.hpp.
-template <class Policy = trace::robust, class S, class I, class P>
-Hit<S> intersect(const WideBvh<S, I, P>& bvh, std::type_identity_t<std::span<const Triangle<S>>> tris,
+template <class Policy = trace::robust, class S, class I, class P, int W>
+Hit<S> intersect(const WideBvh<S, I, P, W>& bvh, std::type_identity_t<std::span<const Triangle<S>>> tris,
                  const std::type_identity_t<Ray<S>>& ray) {
     detail::check_triangles(bvh, tris.size(), "intersect");
     return detail::wide_traverse<Policy, false>(bvh, tris, ray);
 }
 
 /// Any hit in a wide BVH; same contract as occluded(Bvh, ...) in traverse.hpp.
-template <class Policy = trace::robust, class S, class I, class P>
-bool occluded(const WideBvh<S, I, P>& bvh, std::type_identity_t<std::span<const Triangle<S>>> tris,
+template <class Policy = trace::robust, class S, class I, class P, int W>
+bool occluded(const WideBvh<S, I, P, W>& bvh, std::type_identity_t<std::span<const Triangle<S>>> tris,
               const std::type_identity_t<Ray<S>>& ray) {
     detail::check_triangles(bvh, tris.size(), "occluded");
     return static_cast<bool>(detail::wide_traverse<Policy, true>(bvh, tris, ray));
