@@ -1,6 +1,7 @@
 // DynAccel: the study's Accel over our builders (lbvh, kbvh, ploc, binned-sah, refit) on one executor,
-// and the tile loop every Accel traces with. The class is instantiated once per executor in
-// accel_<executor>.cpp, so the three heavy instantiations compile in parallel.
+// and the tile loop every Accel traces with. The builders are instantiated once per executor in
+// accel_<executor>.cpp (three files that compile in parallel), the traversals once per primitive
+// policy in accel_trace.cpp.
 #pragma once
 
 #include <memory>
@@ -38,118 +39,89 @@ std::unique_ptr<Accel> make_dyn_accel(const BuilderSpec& spec, const Exec& ex, c
 
 namespace accel_impl {
 
+/// One frame's trees from one of our builders and the queries on them. Nothing here depends on the
+/// executor, so the traversal code is compiled once per primitive policy (accel_trace.cpp) instead of
+/// once per executor.
+template <class Prim>
+struct Trees {
+    using BvhT = Bvh<Node<>, Prim>;
+    BvhT bvh;                          ///< always built (refit and the SAH column use it)
+    wide_bvh_of<BvhT, 4> wide4;        ///< built when spec.wide == 4
+    wide_bvh_of<BvhT, 8> wide8;        ///< built when spec.wide == 8
+
+    /// One primary ray per pixel through the tree spec.wide names, with spec's box and triangle tests.
+    void trace(const BuilderSpec& spec, const Backend& backend, std::span<const Trianglef> tris, const RayGen& gen,
+               std::span<std::uint32_t> out) const;
+    Hitf intersect(const BuilderSpec& spec, std::span<const Trianglef> tris, const Rayf& r) const;
+    bool occluded(const BuilderSpec& spec, std::span<const Trianglef> tris, const Rayf& r) const;
+    /// Bytes of the traced tree.
+    std::size_t memory_bytes(const BuilderSpec& spec) const;
+};
+extern template struct Trees<prim::indexed>;
+extern template struct Trees<prim::precomputed>;
+
 /// Our builders on executor Exec with primitive policy Prim.
 template <class Exec, class Prim>
 class DynAccel final : public Accel {
 public:
-    using BvhT = Bvh<Node<>, Prim>;
-    using Wide4 = wide_bvh_of<BvhT, 4>;
-    using Wide8 = wide_bvh_of<BvhT, 8>;
-
     DynAccel(const BuilderSpec& spec, const Exec& ex, const Backend& backend) : spec_(spec), ex_(ex), backend_(backend) {}
 
     void build(std::span<const Trianglef> tris) override {
-        previous_ = std::move(bvh_);   // freed untimed in release_previous()
-        previous_wide4_ = std::move(wide4_);
-        previous_wide8_ = std::move(wide8_);
+        previous_ = std::move(current_);   // freed untimed in release_previous()
         build_binary(tris);
-        // The 4- or 8-wide tree traced when spec_.wide (timed as part of the build). The binary tree stays
-        // (refit and the SAH column use it).
-        if (spec_.wide == 4) wide4_ = make_wide<4>(bvh_, ex_);
-        if (spec_.wide == 8) wide8_ = make_wide<8>(bvh_, ex_);
+        // The 4- or 8-wide tree traced when spec_.wide (timed as part of the build).
+        if (spec_.wide == 4) current_.wide4 = make_wide<4>(current_.bvh, ex_);
+        if (spec_.wide == 8) current_.wide8 = make_wide<8>(current_.bvh, ex_);
     }
     void build_binary(std::span<const Trianglef> tris) {
         const LeafConfig leaves{.max_leaf_size = spec_.max_leaf};
+        auto& bvh = current_.bvh;
         switch (spec_.kind) {
             case Kind::lbvh:
-                bvh_ = lbvh::build<Node<>, Prim>(tris, {.morton_bits = spec_.morton_bits, .leaves = leaves}, ex_);
+                bvh = lbvh::build<Node<>, Prim>(tris, {.morton_bits = spec_.morton_bits, .leaves = leaves}, ex_);
                 break;
             case Kind::refit:
-                if (previous_.empty() || previous_.primitive_count != tris.size()) {
-                    bvh_ = lbvh::build<Node<>, Prim>(tris, {.morton_bits = spec_.morton_bits, .leaves = leaves}, ex_);
+                if (previous_.bvh.empty() || previous_.bvh.primitive_count != tris.size()) {
+                    bvh = lbvh::build<Node<>, Prim>(tris, {.morton_bits = spec_.morton_bits, .leaves = leaves}, ex_);
                 } else {
-                    bvh_ = std::move(previous_);
-                    dynbvh::refit(bvh_, tris, ex_);
+                    bvh = std::move(previous_.bvh);
+                    dynbvh::refit(bvh, tris, ex_);
                 }
                 break;
             case Kind::ploc:
-                bvh_ = ploc::build<Node<>, Prim>(
+                bvh = ploc::build<Node<>, Prim>(
                     tris, {.radius = spec_.radius, .morton_bits = spec_.morton_bits, .leaves = leaves}, ex_);
                 break;
             case Kind::kbvh: {
                 const kbvh::Config<kbvh::with_ploc> cfg{
                     .split = {.beta = spec_.beta},
                     .builder = {.radius = spec_.radius, .morton_bits = spec_.morton_bits, .leaves = leaves}};
-                bvh_ = kbvh::build<Node<>, Prim>(tris, cfg, ex_);
+                bvh = kbvh::build<Node<>, Prim>(tris, cfg, ex_);
                 break;
             }
             case Kind::binned_sah:
-                bvh_ = binned_sah::build<Node<>, Prim>(tris, {.bins = spec_.bins, .leaves = leaves}, ex_);
+                bvh = binned_sah::build<Node<>, Prim>(tris, {.bins = spec_.bins, .leaves = leaves}, ex_);
                 break;
             default:
                 throw std::logic_error("DynAccel: not one of our builders");
         }
     }
-    void release_previous() override {
-        previous_ = BvhT{};
-        previous_wide4_ = Wide4{};
-        previous_wide8_ = Wide8{};
-    }
+    void release_previous() override { previous_ = Trees<Prim>{}; }
 
     void trace(std::span<const Trianglef> tris, const RayGen& gen, std::span<std::uint32_t> out) override {
-        if (spec_.fast_box && spec_.fast_tri) run<trace::fast>(tris, gen, out);
-        else if (spec_.fast_box) run<trace::policy<box::fast, tri::watertight>>(tris, gen, out);
-        else if (spec_.fast_tri) run<trace::policy<box::robust, tri::moller_trumbore>>(tris, gen, out);
-        else run<trace::robust>(tris, gen, out);
+        current_.trace(spec_, backend_, tris, gen, out);
     }
-    std::optional<double> sah() const override { return sah_cost(bvh_, SahConfig{.ct = 3, .ci = 2}, ex_); }
-    /// The traced tree's bytes (the wide one when spec_.wide).
-    std::optional<std::size_t> memory_bytes() const override {
-        return with_tree([](const auto& tree) { return tree.memory_bytes(); });
-    }
+    std::optional<double> sah() const override { return sah_cost(current_.bvh, SahConfig{.ct = 3, .ci = 2}, ex_); }
+    std::optional<std::size_t> memory_bytes() const override { return current_.memory_bytes(spec_); }
     /// Single-ray queries (effect rays) go through the same tree as trace().
-    Hitf intersect(std::span<const Trianglef> tris, const Rayf& r) const override {
-        return with_policy([&]<class Policy>() {
-            return with_tree([&](const auto& tree) { return dynbvh::intersect<Policy>(tree, tris, r); });
-        });
-    }
-    bool occluded(std::span<const Trianglef> tris, const Rayf& r) const override {
-        return with_policy([&]<class Policy>() {
-            return with_tree([&](const auto& tree) { return dynbvh::occluded<Policy>(tree, tris, r); });
-        });
-    }
+    Hitf intersect(std::span<const Trianglef> tris, const Rayf& r) const override { return current_.intersect(spec_, tris, r); }
+    bool occluded(std::span<const Trianglef> tris, const Rayf& r) const override { return current_.occluded(spec_, tris, r); }
 
 private:
-    /// f.template operator()<Policy>() with the spec's box and triangle tests (single-ray queries).
-    template <class F>
-    decltype(auto) with_policy(const F& f) const {
-        if (spec_.fast_box && spec_.fast_tri) return f.template operator()<trace::fast>();
-        if (spec_.fast_box) return f.template operator()<trace::policy<box::fast, tri::watertight>>();
-        if (spec_.fast_tri) return f.template operator()<trace::policy<box::robust, tri::moller_trumbore>>();
-        return f.template operator()<trace::robust>();
-    }
-
-    /// f(tree) with the traced tree: the 4- or 8-wide one, or the binary one for wide=0.
-    template <class F>
-    decltype(auto) with_tree(const F& f) const {
-        if (spec_.wide == 8) return f(wide8_);
-        if (spec_.wide == 4) return f(wide4_);
-        return f(bvh_);
-    }
-
-    template <class Policy>
-    void run(std::span<const Trianglef> tris, const RayGen& gen, std::span<std::uint32_t> out) const {
-        with_tree([&](const auto& tree) {
-            trace_tiles(backend_, gen, out, [&](const Rayf& r) { return dynbvh::intersect<Policy>(tree, tris, r).prim; });
-        });
-    }
-
     BuilderSpec spec_;
     const Exec& ex_;
     const Backend& backend_;
-    BvhT bvh_, previous_;
-    Wide4 wide4_, previous_wide4_;
-    Wide8 wide8_, previous_wide8_;
+    Trees<Prim> current_, previous_;
 };
 
 } // namespace accel_impl
