@@ -3,6 +3,7 @@
 // and the comparison of a BVH's answers with brute force.
 #pragma once
 
+#include "hit_compare.hpp"
 #include "support.hpp"
 
 #include <dynbvh/binned_sah.hpp>
@@ -41,7 +42,6 @@ inline std::size_t env_count(const char* name, std::size_t fallback) {
     return (end && *end == '\0' && v > 0) ? std::size_t(v) : fallback;
 }
 
-inline bool same_bits(float a, float b) { return std::bit_cast<std::uint32_t>(a) == std::bit_cast<std::uint32_t>(b); }
 
 // ---- closed meshes ---------------------------------------------------------------------------
 
@@ -509,14 +509,6 @@ Reference brute_force(std::span<const Trianglef> tris, std::span<const Rayf> ray
     return ref;
 }
 
-inline std::string describe(const Rayf& r) {
-    std::ostringstream s;
-    s.precision(9);
-    s << "org (" << r.org.x << ", " << r.org.y << ", " << r.org.z << ") dir (" << r.dir.x << ", " << r.dir.y << ", "
-      << r.dir.z << ") [" << r.tmin << ", " << r.tmax << "]";
-    return s.str();
-}
-
 /// Disagreements of a BVH with brute force: closest hit (hit or miss, t to the bit, the same triangle
 /// or an exact tie, u and v to the bit), any hit (occluded == brute-force occluded). Per ray kind.
 struct Disagreements {
@@ -533,16 +525,7 @@ Disagreements compare_with(const B& bvh, std::span<const Trianglef> tris, const 
         const Rayf& ray = set.rays[i];
         const Hitf h = intersect<Policy>(bvh, tris, ray);
         const Hitf& e = ref.hits[i];
-        bool ok = bool(h) == bool(e);
-        if (ok && h) {
-            ok = same_bits(h.t, e.t);
-            if (ok && h.prim != e.prim) {
-                // an exact tie: both triangles are hit at this very t
-                ok = h.prim < tris.size() && same_bits(intersect_triangle<Tri>(tris[h.prim], ray).t, h.t);
-            } else if (ok) {
-                ok = same_bits(h.u, e.u) && same_bits(h.v, e.v);
-            }
-        }
+        bool ok = same_hit<Tri>(h, e, tris, ray);
         const bool occ = occluded<Policy>(bvh, tris, ray);
         if (occ != bool(ref.occluded[i])) ok = false;
         if (!ok) {

@@ -6,6 +6,7 @@
 #include <dynbvh/traverse.hpp>
 #include <dynbvh/validate.hpp>
 
+#include "hit_compare.hpp"
 #include "sanitized.hpp"
 #include "simple_builder.hpp"
 
@@ -26,6 +27,9 @@
 using namespace dynbvh;
 using dynbvh::testing::caterpillar_build;
 using dynbvh::testing::median_build;
+using dynbvh::test::describe;
+using dynbvh::test::same_bits;
+using dynbvh::test::same_hit;
 
 namespace {
 
@@ -123,22 +127,6 @@ std::vector<Ray<T>> make_rays(const std::vector<Triangle<T>>& tris, std::size_t 
     return rays;
 }
 
-template <class T>
-bool same_bits(T a, T b) {
-    if constexpr (sizeof(T) == 4) return std::bit_cast<std::uint32_t>(a) == std::bit_cast<std::uint32_t>(b);
-    else return std::bit_cast<std::uint64_t>(a) == std::bit_cast<std::uint64_t>(b);
-}
-
-template <class T>
-std::string describe(const Ray<T>& r, const Hit<T>& a, const Hit<T>& b) {
-    std::ostringstream s;
-    s.precision(9);
-    s << "ray org (" << r.org.x << ", " << r.org.y << ", " << r.org.z << ") dir (" << r.dir.x << ", " << r.dir.y << ", "
-      << r.dir.z << ") [" << r.tmin << ", " << r.tmax << "]: bvh prim " << a.prim << " t " << a.t << " / brute prim "
-      << b.prim << " t " << b.t;
-    return s.str();
-}
-
 // Compares a BVH against precomputed brute-force results; `skip` masks ray kinds the policy is allowed
 // to disagree on (grazing rays for the fast box test). Returns the number of mismatches.
 template <class Policy, class B, class T>
@@ -152,17 +140,9 @@ std::size_t compare(const B& bvh, const std::vector<Triangle<T>>& tris, const st
         ++compared;
         const Hit<T> h = intersect<Policy>(bvh, tris, rays[i]);
         const Hit<T>& e = brute[i];
-        bool ok = bool(h) == bool(e);
-        if (ok && h) {
-            ok = same_bits(h.t, e.t);
-            if (ok && h.prim != e.prim) {
-                // an exact tie: both triangles are hit at this very t
-                ok = h.prim < tris.size() && same_bits(intersect_triangle<Tri>(tris[h.prim], rays[i]).t, h.t) &&
-                     same_bits(intersect_triangle<Tri>(tris[e.prim], rays[i]).t, e.t);
-            } else if (ok) {
-                ok = same_bits(h.u, e.u) && same_bits(h.v, e.v);
-            }
-        }
+        // an exact tie also needs the expected triangle hit at that t
+        bool ok = same_hit<Tri>(h, e, std::span<const Triangle<T>>(tris), rays[i]) &&
+                  (!h || h.prim == e.prim || same_bits(intersect_triangle<Tri>(tris[e.prim], rays[i]).t, e.t));
         const bool occ = occluded<Policy>(bvh, tris, rays[i]);
         if (occ != bool(h)) ok = false;
         if (!ok && bad++ < 5) MESSAGE("mismatch (occluded " << occ << "): " << describe(rays[i], h, e));

@@ -13,6 +13,7 @@
 #include <dynbvh/wide.hpp>
 
 #include "simple_builder.hpp"
+#include "hit_compare.hpp"
 #include "support.hpp"
 
 #include <bit>
@@ -32,11 +33,12 @@
 
 using namespace dynbvh;
 using dynbvh::test::Rng;
+using dynbvh::test::describe;
+using dynbvh::test::same_bits;
+using dynbvh::test::same_hit;
 
 namespace {
 
-bool same_bits(float a, float b) { return std::bit_cast<std::uint32_t>(a) == std::bit_cast<std::uint32_t>(b); }
-bool same_bits(double a, double b) { return std::bit_cast<std::uint64_t>(a) == std::bit_cast<std::uint64_t>(b); }
 
 // ---- structure ------------------------------------------------------------------------------
 
@@ -232,27 +234,6 @@ bool is_grazing(std::size_t i) {
     return k == Kind::vertex || k == Kind::edge || k == Kind::axis_vertex || k == Kind::grazing;
 }
 
-template <class T>
-std::string describe(const Ray<T>& r, const Hit<T>& a, const Hit<T>& b) {
-    std::ostringstream s;
-    s.precision(9);
-    s << "ray org (" << r.org.x << ", " << r.org.y << ", " << r.org.z << ") dir (" << r.dir.x << ", " << r.dir.y << ", "
-      << r.dir.z << ") [" << r.tmin << ", " << r.tmax << "]: wide prim " << a.prim << " t " << a.t << " / expected prim "
-      << b.prim << " t " << b.t;
-    return s.str();
-}
-
-/// Same hit: both miss, or the same t to the bit and the same triangle (u, v to the bit), or an exact
-/// tie (another triangle hit at exactly that t).
-template <class Tri, class T>
-bool same_hit(const Hit<T>& h, const Hit<T>& e, std::span<const Triangle<T>> tris, const Ray<T>& r) {
-    if (bool(h) != bool(e)) return false;
-    if (!h) return true;
-    if (!same_bits(h.t, e.t)) return false;
-    if (h.prim == e.prim) return same_bits(h.u, e.u) && same_bits(h.v, e.v);
-    return h.prim < tris.size() && same_bits(intersect_triangle<Tri>(tris[h.prim], r).t, h.t);
-}
-
 /// Wide (robust and fast) against brute force and the binary traversal, both primitive policies.
 /// Returns the number of disagreements of the robust policy (which must be 0); fast-policy
 /// disagreements on non-grazing rays are counted in `fast_bad`.
@@ -381,8 +362,8 @@ void check_simd_box_test() {
         detail::dispatch_octant(pr.octant, [&](auto oct) {
             constexpr int O = decltype(oct)::value;
             alignas(32) float ts[W], tv[W];
-            const unsigned ms = detail::WideBoxTestScalar<box::robust, float>(pr).test<O>(n, tmax, ts);
-            const unsigned mv = detail::WideBoxTest<box::robust, float, W>(pr).test<O>(n, tmax, tv);
+            const unsigned ms = detail::WideBoxTestScalar<box::robust, float>(pr).template test<O>(n, tmax, ts);
+            const unsigned mv = detail::WideBoxTest<box::robust, float, W>(pr).template test<O>(n, tmax, tv);
             masks += ms != 0;
             bool ok = ms == mv;
             for (int k = 0; k < W; ++k)
@@ -396,8 +377,8 @@ void check_simd_box_test() {
 #if !defined(__FMA__)
             // Without FMA the fast test is the same arithmetic as well.
             const box::fast::prepared<float> pf(r);
-            const unsigned fs = detail::WideBoxTestScalar<box::fast, float>(pf).test<O>(n, tmax, ts);
-            const unsigned fv = detail::WideBoxTest<box::fast, float, W>(pf).test<O>(n, tmax, tv);
+            const unsigned fs = detail::WideBoxTestScalar<box::fast, float>(pf).template test<O>(n, tmax, ts);
+            const unsigned fv = detail::WideBoxTest<box::fast, float, W>(pf).template test<O>(n, tmax, tv);
             ok = ok && fs == fv;
 #endif
             bad += ok ? 0 : 1;

@@ -57,9 +57,11 @@ struct StackEntry {
     T tentry;  ///< entry distance of the node's box, to skip it once a closer hit is known
 };
 
-template <class NodeT, class Prim>
-void check_triangles(const Bvh<NodeT, Prim>& bvh, std::size_t given, const char* fn) {
-    if constexpr (!Bvh<NodeT, Prim>::precomputed) {
+/// Throws when `given` triangles cannot be the array a tree (binary or wide) indexing the user's
+/// triangles was built over.
+template <class Tree>
+void check_triangles(const Tree& bvh, std::size_t given, const char* fn) {
+    if constexpr (!Tree::precomputed) {
         if (given < bvh.primitive_count)
             throw std::invalid_argument(std::string("dynbvh::") + fn + ": the triangle span has " + std::to_string(given) +
                                         " triangles but the BVH was built over " + std::to_string(bvh.primitive_count));

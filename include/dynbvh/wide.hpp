@@ -56,8 +56,6 @@
 #include <limits>
 #include <new>
 #include <span>
-#include <stdexcept>
-#include <string>
 #include <type_traits>
 #include <utility>
 #include <vector>
@@ -407,13 +405,77 @@ struct WideBoxTest : WideBoxTestScalar<Box, T> {
 // _mm_max_ps(x, acc) == (x > acc ? x : acc) == max_keep(acc, x), including NaN x and +-0;
 // _mm_min_ps(x, acc) == (x < acc ? x : acc) == min_keep(acc, x). The AVX forms behave alike.
 
-/// SSE, four slots per step (an 8-wide node takes two steps).
+/// The SIMD operations the wide box tests use, on four float lanes (SSE).
+struct Lanes4 {
+    using reg = __m128;
+    static constexpr int n = 4;
+    static DYNBVH_ALWAYS_INLINE reg from4(__m128 x) noexcept { return x; }
+    static DYNBVH_ALWAYS_INLINE reg set1(float x) noexcept { return _mm_set1_ps(x); }
+    static DYNBVH_ALWAYS_INLINE reg load(const float* p) noexcept { return _mm_load_ps(p); }
+    static DYNBVH_ALWAYS_INLINE void store(float* p, reg a) noexcept { _mm_storeu_ps(p, a); }
+    static DYNBVH_ALWAYS_INLINE reg add(reg a, reg b) noexcept { return _mm_add_ps(a, b); }
+    static DYNBVH_ALWAYS_INLINE reg sub(reg a, reg b) noexcept { return _mm_sub_ps(a, b); }
+    static DYNBVH_ALWAYS_INLINE reg mul(reg a, reg b) noexcept { return _mm_mul_ps(a, b); }
+    static DYNBVH_ALWAYS_INLINE reg min(reg a, reg b) noexcept { return _mm_min_ps(a, b); }
+    static DYNBVH_ALWAYS_INLINE reg max(reg a, reg b) noexcept { return _mm_max_ps(a, b); }
+    static DYNBVH_ALWAYS_INLINE reg abs(reg a) noexcept { return _mm_andnot_ps(_mm_set1_ps(-0.0f), a); }
+    /// a * b - c (fused when the compiler targets FMA)
+    static DYNBVH_ALWAYS_INLINE reg fmsub(reg a, reg b, reg c) noexcept {
+#if defined(__FMA__)
+        return _mm_fmsub_ps(a, b, c);
+#else
+        return _mm_sub_ps(_mm_mul_ps(a, b), c);
+#endif
+    }
+    /// Bit k set when a[k] <= b[k] (false for NaN).
+    static DYNBVH_ALWAYS_INLINE unsigned le_mask(reg a, reg b) noexcept { return unsigned(_mm_movemask_ps(_mm_cmple_ps(a, b))); }
+};
+
+#if defined(__AVX__)
+#define DYNBVH_WIDE_AVX 1
+/// The same operations on eight float lanes (AVX), for 8-wide nodes.
+struct Lanes8 {
+    using reg = __m256;
+    static constexpr int n = 8;
+    static DYNBVH_ALWAYS_INLINE reg from4(__m128 x) noexcept { return _mm256_insertf128_ps(_mm256_castps128_ps256(x), x, 1); }
+    static DYNBVH_ALWAYS_INLINE reg set1(float x) noexcept { return _mm256_set1_ps(x); }
+    static DYNBVH_ALWAYS_INLINE reg load(const float* p) noexcept { return _mm256_load_ps(p); }
+    static DYNBVH_ALWAYS_INLINE void store(float* p, reg a) noexcept { _mm256_storeu_ps(p, a); }
+    static DYNBVH_ALWAYS_INLINE reg add(reg a, reg b) noexcept { return _mm256_add_ps(a, b); }
+    static DYNBVH_ALWAYS_INLINE reg sub(reg a, reg b) noexcept { return _mm256_sub_ps(a, b); }
+    static DYNBVH_ALWAYS_INLINE reg mul(reg a, reg b) noexcept { return _mm256_mul_ps(a, b); }
+    static DYNBVH_ALWAYS_INLINE reg min(reg a, reg b) noexcept { return _mm256_min_ps(a, b); }
+    static DYNBVH_ALWAYS_INLINE reg max(reg a, reg b) noexcept { return _mm256_max_ps(a, b); }
+    static DYNBVH_ALWAYS_INLINE reg abs(reg a) noexcept { return _mm256_andnot_ps(_mm256_set1_ps(-0.0f), a); }
+    static DYNBVH_ALWAYS_INLINE reg fmsub(reg a, reg b, reg c) noexcept {
+#if defined(__FMA__)
+        return _mm256_fmsub_ps(a, b, c);
+#else
+        return _mm256_sub_ps(_mm256_mul_ps(a, b), c);
+#endif
+    }
+    static DYNBVH_ALWAYS_INLINE unsigned le_mask(reg a, reg b) noexcept {
+        return unsigned(_mm256_movemask_ps(_mm256_cmp_ps(a, b, _CMP_LE_OQ)));
+    }
+};
+/// The widest lanes that divide W: one AVX step per 8-wide node.
+template <int W>
+using lanes_for = std::conditional_t<W % 8 == 0, Lanes8, Lanes4>;
+#else
+/// Without AVX, an 8-wide node takes two SSE steps.
+template <int W>
+using lanes_for = Lanes4;
+#endif
+
+/// box::robust on W slots, L::n lanes per step.
 template <int W>
 struct WideBoxTest<box::robust, float, W> {
     using prepared = box::robust::prepared<float>;
+    using L = lanes_for<W>;
+    using R = typename L::reg;
     explicit WideBoxTest(const prepared& p) noexcept
-        : ox(_mm_set1_ps(p.org.x)), oy(_mm_set1_ps(p.org.y)), oz(_mm_set1_ps(p.org.z)), ix(_mm_set1_ps(p.inv.x)),
-          iy(_mm_set1_ps(p.inv.y)), iz(_mm_set1_ps(p.inv.z)), tmin(_mm_set1_ps(p.tmin)) {}
+        : ox(L::set1(p.org.x)), oy(L::set1(p.org.y)), oz(L::set1(p.org.z)), ix(L::set1(p.inv.x)), iy(L::set1(p.inv.y)),
+          iz(L::set1(p.inv.z)), tmin(L::set1(p.tmin)) {}
 
     /// The same values as from box::robust::prepared (org, inv = 1 / dir correctly rounded, tmin,
     /// octant = direction sign bits, t_scale = 1), computed in a few SSE instructions for the common ray:
@@ -432,139 +494,67 @@ struct WideBoxTest<box::robust, float, W> {
         ok = finite == 15 && tiny == 0 && nonzero != 0 && r.tmin <= r.tmax;
         const __m128 inv = _mm_div_ps(_mm_set1_ps(1.0f), d);
         octant = _mm_movemask_ps(d) & 7;
-        ox = _mm_shuffle_ps(o, o, 0x00);
-        oy = _mm_shuffle_ps(o, o, 0x55);
-        oz = _mm_shuffle_ps(o, o, 0xaa);
-        ix = _mm_shuffle_ps(inv, inv, 0x00);
-        iy = _mm_shuffle_ps(inv, inv, 0x55);
-        iz = _mm_shuffle_ps(inv, inv, 0xaa);
-        tmin = _mm_set1_ps(r.tmin);
+        ox = L::from4(_mm_shuffle_ps(o, o, 0x00));
+        oy = L::from4(_mm_shuffle_ps(o, o, 0x55));
+        oz = L::from4(_mm_shuffle_ps(o, o, 0xaa));
+        ix = L::from4(_mm_shuffle_ps(inv, inv, 0x00));
+        iy = L::from4(_mm_shuffle_ps(inv, inv, 0x55));
+        iz = L::from4(_mm_shuffle_ps(inv, inv, 0xaa));
+        tmin = L::set1(r.tmin);
     }
     template <int Oct, class I>
     DYNBVH_ALWAYS_INLINE unsigned test(const WideNode<float, I, W>& n, float tmax, float* tentry) const noexcept {
         unsigned mask = 0;
-        for (int h = 0; h < W; h += 4) {
-            const __m128 x0 = _mm_mul_ps(_mm_sub_ps(_mm_load_ps((Oct & 1 ? n.hi_x : n.lo_x) + h), ox), ix);
-            const __m128 x1 = _mm_mul_ps(_mm_sub_ps(_mm_load_ps((Oct & 1 ? n.lo_x : n.hi_x) + h), ox), ix);
-            const __m128 y0 = _mm_mul_ps(_mm_sub_ps(_mm_load_ps((Oct & 2 ? n.hi_y : n.lo_y) + h), oy), iy);
-            const __m128 y1 = _mm_mul_ps(_mm_sub_ps(_mm_load_ps((Oct & 2 ? n.lo_y : n.hi_y) + h), oy), iy);
-            const __m128 z0 = _mm_mul_ps(_mm_sub_ps(_mm_load_ps((Oct & 4 ? n.hi_z : n.lo_z) + h), oz), iz);
-            const __m128 z1 = _mm_mul_ps(_mm_sub_ps(_mm_load_ps((Oct & 4 ? n.lo_z : n.hi_z) + h), oz), iz);
-            const __m128 tn = _mm_max_ps(z0, _mm_max_ps(y0, _mm_max_ps(x0, tmin)));
-            __m128 tf = _mm_min_ps(z1, _mm_min_ps(y1, _mm_min_ps(x1, _mm_set1_ps(tmax))));
-            // box::robust::widen: tf + 2 gamma(3) |tf|
-            const __m128 abs_tf = _mm_andnot_ps(_mm_set1_ps(-0.0f), tf);
-            tf = _mm_add_ps(tf, _mm_mul_ps(_mm_set1_ps(2.0f * rounding_gamma<float>(3)), abs_tf));
-            _mm_storeu_ps(tentry + h, tn);
-            mask |= unsigned(_mm_movemask_ps(_mm_cmple_ps(tn, tf))) << h;
+        for (int h = 0; h < W; h += L::n) {
+            const R x0 = L::mul(L::sub(L::load((Oct & 1 ? n.hi_x : n.lo_x) + h), ox), ix);
+            const R x1 = L::mul(L::sub(L::load((Oct & 1 ? n.lo_x : n.hi_x) + h), ox), ix);
+            const R y0 = L::mul(L::sub(L::load((Oct & 2 ? n.hi_y : n.lo_y) + h), oy), iy);
+            const R y1 = L::mul(L::sub(L::load((Oct & 2 ? n.lo_y : n.hi_y) + h), oy), iy);
+            const R z0 = L::mul(L::sub(L::load((Oct & 4 ? n.hi_z : n.lo_z) + h), oz), iz);
+            const R z1 = L::mul(L::sub(L::load((Oct & 4 ? n.lo_z : n.hi_z) + h), oz), iz);
+            const R tn = L::max(z0, L::max(y0, L::max(x0, tmin)));
+            R tf = L::min(z1, L::min(y1, L::min(x1, L::set1(tmax))));
+            tf = L::add(tf, L::mul(L::set1(2.0f * rounding_gamma<float>(3)), L::abs(tf)));   // box::robust::widen
+            L::store(tentry + h, tn);
+            mask |= L::le_mask(tn, tf) << h;
         }
         return mask;
     }
 
-    __m128 ox, oy, oz, ix, iy, iz, tmin;
+private:
+    R ox, oy, oz, ix, iy, iz, tmin;
 };
 
+/// box::fast on W slots, L::n lanes per step.
 template <int W>
 struct WideBoxTest<box::fast, float, W> {
     using prepared = box::fast::prepared<float>;
+    using L = lanes_for<W>;
+    using R = typename L::reg;
     explicit WideBoxTest(const prepared& p) noexcept
-        : ix(_mm_set1_ps(p.inv.x)), iy(_mm_set1_ps(p.inv.y)), iz(_mm_set1_ps(p.inv.z)), oix(_mm_set1_ps(p.org_inv.x)),
-          oiy(_mm_set1_ps(p.org_inv.y)), oiz(_mm_set1_ps(p.org_inv.z)), tmin(_mm_set1_ps(p.tmin)) {}
+        : ix(L::set1(p.inv.x)), iy(L::set1(p.inv.y)), iz(L::set1(p.inv.z)), oix(L::set1(p.org_inv.x)),
+          oiy(L::set1(p.org_inv.y)), oiz(L::set1(p.org_inv.z)), tmin(L::set1(p.tmin)) {}
     template <int Oct, class I>
     DYNBVH_ALWAYS_INLINE unsigned test(const WideNode<float, I, W>& n, float tmax, float* tentry) const noexcept {
         unsigned mask = 0;
-        for (int h = 0; h < W; h += 4) {
-            const __m128 x0 = slab(_mm_load_ps((Oct & 1 ? n.hi_x : n.lo_x) + h), ix, oix);
-            const __m128 x1 = slab(_mm_load_ps((Oct & 1 ? n.lo_x : n.hi_x) + h), ix, oix);
-            const __m128 y0 = slab(_mm_load_ps((Oct & 2 ? n.hi_y : n.lo_y) + h), iy, oiy);
-            const __m128 y1 = slab(_mm_load_ps((Oct & 2 ? n.lo_y : n.hi_y) + h), iy, oiy);
-            const __m128 z0 = slab(_mm_load_ps((Oct & 4 ? n.hi_z : n.lo_z) + h), iz, oiz);
-            const __m128 z1 = slab(_mm_load_ps((Oct & 4 ? n.lo_z : n.hi_z) + h), iz, oiz);
-            const __m128 tn = _mm_max_ps(z0, _mm_max_ps(y0, _mm_max_ps(x0, tmin)));
-            const __m128 tf = _mm_min_ps(z1, _mm_min_ps(y1, _mm_min_ps(x1, _mm_set1_ps(tmax))));
-            _mm_storeu_ps(tentry + h, tn);
-            mask |= unsigned(_mm_movemask_ps(_mm_cmple_ps(tn, tf))) << h;
+        for (int h = 0; h < W; h += L::n) {
+            const R x0 = L::fmsub(L::load((Oct & 1 ? n.hi_x : n.lo_x) + h), ix, oix);
+            const R x1 = L::fmsub(L::load((Oct & 1 ? n.lo_x : n.hi_x) + h), ix, oix);
+            const R y0 = L::fmsub(L::load((Oct & 2 ? n.hi_y : n.lo_y) + h), iy, oiy);
+            const R y1 = L::fmsub(L::load((Oct & 2 ? n.lo_y : n.hi_y) + h), iy, oiy);
+            const R z0 = L::fmsub(L::load((Oct & 4 ? n.hi_z : n.lo_z) + h), iz, oiz);
+            const R z1 = L::fmsub(L::load((Oct & 4 ? n.lo_z : n.hi_z) + h), iz, oiz);
+            const R tn = L::max(z0, L::max(y0, L::max(x0, tmin)));
+            const R tf = L::min(z1, L::min(y1, L::min(x1, L::set1(tmax))));
+            L::store(tentry + h, tn);
+            mask |= L::le_mask(tn, tf) << h;
         }
         return mask;
     }
 
-    static DYNBVH_ALWAYS_INLINE __m128 slab(__m128 plane, __m128 inv, __m128 org_inv) noexcept {
-#if defined(__FMA__)
-        return _mm_fmsub_ps(plane, inv, org_inv);
-#else
-        return _mm_sub_ps(_mm_mul_ps(plane, inv), org_inv);
-#endif
-    }
-    __m128 ix, iy, iz, oix, oiy, oiz, tmin;
-};
-
-#if defined(__AVX__)
-#define DYNBVH_WIDE_AVX 1
-/// AVX, eight slots in one step: the SSE test's operations on 256-bit registers, in the same order.
-inline __m256 wide_dup(__m128 x) noexcept { return _mm256_insertf128_ps(_mm256_castps128_ps256(x), x, 1); }
-
-template <>
-struct WideBoxTest<box::robust, float, 8> {
-    using prepared = box::robust::prepared<float>;
-    using Half = WideBoxTest<box::robust, float, 4>;
-    explicit WideBoxTest(const prepared& p) noexcept : WideBoxTest(Half(p)) {}
-    /// As the SSE form (same values, same `ok`).
-    WideBoxTest(const Ray<float>& r, bool& ok, int& octant) noexcept : WideBoxTest(Half(r, ok, octant)) {}
-    template <int Oct, class I>
-    DYNBVH_ALWAYS_INLINE unsigned test(const WideNode<float, I, 8>& n, float tmax, float* tentry) const noexcept {
-        const __m256 x0 = _mm256_mul_ps(_mm256_sub_ps(_mm256_load_ps(Oct & 1 ? n.hi_x : n.lo_x), ox), ix);
-        const __m256 x1 = _mm256_mul_ps(_mm256_sub_ps(_mm256_load_ps(Oct & 1 ? n.lo_x : n.hi_x), ox), ix);
-        const __m256 y0 = _mm256_mul_ps(_mm256_sub_ps(_mm256_load_ps(Oct & 2 ? n.hi_y : n.lo_y), oy), iy);
-        const __m256 y1 = _mm256_mul_ps(_mm256_sub_ps(_mm256_load_ps(Oct & 2 ? n.lo_y : n.hi_y), oy), iy);
-        const __m256 z0 = _mm256_mul_ps(_mm256_sub_ps(_mm256_load_ps(Oct & 4 ? n.hi_z : n.lo_z), oz), iz);
-        const __m256 z1 = _mm256_mul_ps(_mm256_sub_ps(_mm256_load_ps(Oct & 4 ? n.lo_z : n.hi_z), oz), iz);
-        const __m256 tn = _mm256_max_ps(z0, _mm256_max_ps(y0, _mm256_max_ps(x0, tmin)));
-        __m256 tf = _mm256_min_ps(z1, _mm256_min_ps(y1, _mm256_min_ps(x1, _mm256_set1_ps(tmax))));
-        const __m256 abs_tf = _mm256_andnot_ps(_mm256_set1_ps(-0.0f), tf);
-        tf = _mm256_add_ps(tf, _mm256_mul_ps(_mm256_set1_ps(2.0f * rounding_gamma<float>(3)), abs_tf));
-        _mm256_storeu_ps(tentry, tn);
-        return unsigned(_mm256_movemask_ps(_mm256_cmp_ps(tn, tf, _CMP_LE_OQ)));
-    }
-
 private:
-    explicit WideBoxTest(const Half& h) noexcept
-        : ox(wide_dup(h.ox)), oy(wide_dup(h.oy)), oz(wide_dup(h.oz)), ix(wide_dup(h.ix)), iy(wide_dup(h.iy)),
-          iz(wide_dup(h.iz)), tmin(wide_dup(h.tmin)) {}
-    __m256 ox, oy, oz, ix, iy, iz, tmin;
+    R ix, iy, iz, oix, oiy, oiz, tmin;
 };
-
-template <>
-struct WideBoxTest<box::fast, float, 8> {
-    using prepared = box::fast::prepared<float>;
-    explicit WideBoxTest(const prepared& p) noexcept
-        : ix(_mm256_set1_ps(p.inv.x)), iy(_mm256_set1_ps(p.inv.y)), iz(_mm256_set1_ps(p.inv.z)),
-          oix(_mm256_set1_ps(p.org_inv.x)), oiy(_mm256_set1_ps(p.org_inv.y)), oiz(_mm256_set1_ps(p.org_inv.z)),
-          tmin(_mm256_set1_ps(p.tmin)) {}
-    template <int Oct, class I>
-    DYNBVH_ALWAYS_INLINE unsigned test(const WideNode<float, I, 8>& n, float tmax, float* tentry) const noexcept {
-        const __m256 x0 = slab(_mm256_load_ps(Oct & 1 ? n.hi_x : n.lo_x), ix, oix);
-        const __m256 x1 = slab(_mm256_load_ps(Oct & 1 ? n.lo_x : n.hi_x), ix, oix);
-        const __m256 y0 = slab(_mm256_load_ps(Oct & 2 ? n.hi_y : n.lo_y), iy, oiy);
-        const __m256 y1 = slab(_mm256_load_ps(Oct & 2 ? n.lo_y : n.hi_y), iy, oiy);
-        const __m256 z0 = slab(_mm256_load_ps(Oct & 4 ? n.hi_z : n.lo_z), iz, oiz);
-        const __m256 z1 = slab(_mm256_load_ps(Oct & 4 ? n.lo_z : n.hi_z), iz, oiz);
-        const __m256 tn = _mm256_max_ps(z0, _mm256_max_ps(y0, _mm256_max_ps(x0, tmin)));
-        const __m256 tf = _mm256_min_ps(z1, _mm256_min_ps(y1, _mm256_min_ps(x1, _mm256_set1_ps(tmax))));
-        _mm256_storeu_ps(tentry, tn);
-        return unsigned(_mm256_movemask_ps(_mm256_cmp_ps(tn, tf, _CMP_LE_OQ)));
-    }
-
-private:
-    static DYNBVH_ALWAYS_INLINE __m256 slab(__m256 plane, __m256 inv, __m256 org_inv) noexcept {
-#if defined(__FMA__)
-        return _mm256_fmsub_ps(plane, inv, org_inv);
-#else
-        return _mm256_sub_ps(_mm256_mul_ps(plane, inv), org_inv);
-#endif
-    }
-    __m256 ix, iy, iz, oix, oiy, oiz, tmin;
-};
-#endif  // __AVX__
 #endif  // DYNBVH_WIDE_SSE
 
 template <class Index, class T>
@@ -706,15 +696,6 @@ Hit<S> wide_traverse(const WideBvh<S, I, P, W>& bvh, std::span<const Triangle<S>
     // so every box test misses and no leaf is reached (tests cover it).
     const typename Box::template prepared<S> pb(ray);
     return wide_run<Policy, AnyHit>(bvh, tris, ray, WideBoxTest<Box, S, W>(pb), pb.t_scale, pb.octant);
-}
-
-template <class S, class I, class P, int W>
-void check_triangles(const WideBvh<S, I, P, W>& bvh, std::size_t given, const char* fn) {
-    if constexpr (!WideBvh<S, I, P, W>::precomputed) {
-        if (given < bvh.primitive_count)
-            throw std::invalid_argument(std::string("dynbvh::") + fn + ": the triangle span has " + std::to_string(given) +
-                                        " triangles but the BVH was built over " + std::to_string(bvh.primitive_count));
-    }
 }
 
 } // namespace detail
