@@ -1,0 +1,436 @@
+/// @file detail/triangle_block.hpp
+/// SIMD triangle leaves: up to L = 4 (SSE) or 8 (AVX) triangles of one leaf stored structure of
+/// arrays, packed in leaf order, and the two triangle tests on a whole block at once.
+///
+///  - `TriangleBlock<L>`: the three vertices of up to L triangles (v[vertex][axis][lane], 64-byte
+///    aligned), the user's triangle index per lane and the number of valid lanes (padding lanes have
+///    NaN vertices and are masked off: never hit).
+///  - `pack_triangle_blocks`: leaves (first slot, count) -> blocks in leaf order; a leaf of n
+///    references takes ceil(n / L) blocks. O(n), parallel over leaves.
+///  - `BlockTest<Tri, L>`: the per-ray state and the block loop for triangle policy Tri, with the
+///    contract of traverse.hpp's test_leaf (same hits, t, u, v, tie rule, any-hit order).
+///
+/// Exactness (tri::watertight). The SIMD part is only a conservative filter: it evaluates the
+/// Woop-Benthin-Wald edge functions in float with a forward error bound and rejects a lane only when
+/// two edge functions have certainly strictly opposite signs - exactly the lanes the scalar
+/// tri::watertight::test rejects by its (exact) sign test whatever tmax is. Every other valid lane goes,
+/// in slot order and with the current tmax, through tri::watertight::test on that lane's triangle
+/// (rebuilt from the block's floats, which are copies of the user's floats). So the result is the
+/// scalar loop's, bit for bit: same hits, t, u, v, the later slot winning an exact tie, the same
+/// first hit for any-hit queries.
+///
+/// The bound (see `BlockTest<tri::watertight, L>::candidates`), u = 2^-24, eta = 2^-150:
+/// X = p[kx] - org[kx] etc. are the scalar test's differences bit for bit (one rounding each). The
+/// sheared x = X - sx Z is within 3u (|X| + |sx Z|) + 2 eta of the scalar test's value whether either
+/// side contracts it into an FMA or not (each is within 2u resp. u of the exact X - sx Z), and
+/// |sx|, |sy| <= 1 (kz is the largest axis), so D = 4u (|X| + |Y| + |Z|) + 4 eta covers x and y.
+/// An edge function F = cx by - cy bx of those perturbed inputs moves by at most
+/// Pc Db + Pb Dc + 2 Dc Db (P = |x| + |y|), and its float evaluation adds at most 3u Pc Pb + 2 eta:
+/// E = Pc (4u Pb + Db) + Dc (Pb + 2 Db) + FLT_MIN bounds |f - F_scalar| (the slack of 4u over 3u and
+/// FLT_MIN over the eta terms absorb the rounding of E itself). Lanes with |X|+|Y|+|Z| summed over the
+/// vertices >= 2^60, or NaN / infinite, are never rejected (no overflow can occur below that).
+///
+/// trace::fast (tri::moller_trumbore): the SIMD test is the scalar test's arithmetic, the same
+/// operations in the same order per lane (including the division), so its t, u, v and hit/miss are
+/// the scalar test's bit for bit as long as neither is FMA-contracted (DYNBVH_NATIVE builds use
+/// -ffp-contract=off); lanes then go through tmax and the tie rule in slot order as in test_leaf.
+///
+/// SIMD: SSE2 for L = 4; AVX for L = 8 where the compiler targets it (__AVX__), else two SSE steps.
+/// With -DDYNBVH_NO_SIMD or on other targets, both tests are the scalar loop (same results).
+/// Float triangles only.
+#pragma once
+
+#include <algorithm>
+#include <bit>
+#include <cmath>
+#include <cstddef>
+#include <cstdint>
+#include <limits>
+#include <span>
+#include <type_traits>
+#include <vector>
+
+#include "../executor.hpp"
+#include "../intersect.hpp"
+#include "../ray.hpp"
+#include "../scratch.hpp"
+#include "../triangle.hpp"
+
+#if (defined(__SSE2__) || defined(_M_X64)) && !defined(DYNBVH_NO_SIMD)
+#include <immintrin.h>
+#define DYNBVH_BLOCK_SSE 1
+#if defined(__AVX__)
+#define DYNBVH_BLOCK_AVX 1
+#endif
+#endif
+
+namespace dynbvh::detail {
+
+/// Up to L triangles of one leaf, structure of arrays: v[vertex][axis][lane].
+template <int L>
+struct alignas(64) TriangleBlock {
+    static_assert(L == 4 || L == 8, "triangle blocks have 4 or 8 lanes");
+    static constexpr int lanes = L;
+
+    float v[3][3][L];          ///< vertex i's coordinate a of lane k: v[i][a][k]
+    std::uint32_t prim[L];     ///< the user's triangle index of each lane (invalid_prim for padding)
+    std::uint32_t count;       ///< valid lanes 0..count-1; the others are padding (NaN vertices)
+
+    /// Every lane padding.
+    void clear() noexcept {
+        for (int i = 0; i < 3; ++i)
+            for (int a = 0; a < 3; ++a)
+                for (int k = 0; k < L; ++k) v[i][a][k] = std::numeric_limits<float>::quiet_NaN();
+        for (int k = 0; k < L; ++k) prim[k] = invalid_prim;
+        count = 0;
+    }
+    void set(int k, const Triangle<float>& t, std::uint32_t id) noexcept {
+        for (int a = 0; a < 3; ++a) {
+            v[0][a][k] = t.p0[std::size_t(a)];
+            v[1][a][k] = t.p1[std::size_t(a)];
+            v[2][a][k] = t.p2[std::size_t(a)];
+        }
+        prim[k] = id;
+    }
+    /// Lane k's triangle (the floats it was packed from, bit for bit).
+    Triangle<float> triangle(int k) const noexcept {
+        return {{v[0][0][k], v[0][1][k], v[0][2][k]}, {v[1][0][k], v[1][1][k], v[1][2][k]}, {v[2][0][k], v[2][1][k], v[2][2][k]}};
+    }
+    /// Bit k set for each valid lane.
+    unsigned valid_mask() const noexcept { return count >= 32 ? ~0u : (1u << count) - 1u; }
+};
+
+static_assert(sizeof(TriangleBlock<4>) == 192 && sizeof(TriangleBlock<8>) == 384);
+
+/// Blocks a leaf of n references takes.
+template <int L>
+constexpr std::size_t blocks_for(std::size_t n) noexcept { return (n + std::size_t(L) - 1) / std::size_t(L); }
+
+/// One leaf to pack: `count` references from slot `first` of prim_ids.
+struct LeafRange {
+    std::size_t first = 0, count = 0;
+};
+
+/// Packs `leaves` into `blocks`, in the order given: leaf j's references (slot first .. first+count-1,
+/// triangle `tri_of(slot)`, user index prim_ids[slot]) go to blocks first_block[j] ..
+/// first_block[j] + ceil(count / L) - 1, lane by lane in slot order (the last block padded).
+/// `first_block` gets leaves.size() + 1 entries (the last is the total). O(references), parallel over
+/// leaves (one exclusive scan, one loop).
+template <int L, class Index, class TriOf, class Exec = exec::serial>
+void pack_triangle_blocks(std::span<const LeafRange> leaves, std::span<const Index> prim_ids, const TriOf& tri_of,
+                          scratch_vector<TriangleBlock<L>>& blocks, std::vector<std::size_t>& first_block, const Exec& ex = {}) {
+    const std::size_t n = leaves.size();
+    first_block.assign(n + 1, 0);
+    ex.for_each(0, n, [&](std::size_t j) { first_block[j] = blocks_for<L>(leaves[j].count); });
+    const std::size_t total = ex.exclusive_scan(std::span<const std::size_t>(first_block.data(), n), std::span<std::size_t>(first_block.data(), n));
+    first_block[n] = total;
+    blocks.resize(total);
+    ex.for_each(0, n, [&](std::size_t j) {
+        const LeafRange& leaf = leaves[j];
+        TriangleBlock<L>* b = blocks.data() + first_block[j];
+        for (std::size_t i = 0; i < leaf.count; i += std::size_t(L), ++b) {
+            b->clear();
+            const std::size_t m = std::min<std::size_t>(std::size_t(L), leaf.count - i);
+            for (std::size_t k = 0; k < m; ++k) {
+                const std::size_t slot = leaf.first + i + k;
+                b->set(int(k), tri_of(slot), static_cast<std::uint32_t>(prim_ids[slot]));
+            }
+            b->count = std::uint32_t(m);
+        }
+    }, 256);
+}
+
+/// The generic block test: Tri's own scalar test on each valid lane in slot order (every policy
+/// without a SIMD version, and every policy under DYNBVH_NO_SIMD).
+template <class Tri, int L>
+struct BlockTest {
+    using prepared = typename Tri::template prepared<float>;
+    prepared pt;
+
+    explicit BlockTest(const Ray<float>& r) noexcept : pt(r) {}
+
+    /// Lanes that may hit (here: every valid lane).
+    unsigned candidates(const TriangleBlock<L>& b) const noexcept { return b.valid_mask(); }
+
+    /// Blocks [first, end) with test_leaf's contract: each hit narrows tmax and tbox = tmax * t_scale and
+    /// sets best_prim and hit.t/u/v; with AnyHit the first hit sets hit.prim and returns true.
+    template <bool AnyHit>
+    DYNBVH_ALWAYS_INLINE bool test(const TriangleBlock<L>* blocks, std::size_t first, std::size_t end, float t_scale, float& tmax,
+                                   float& tbox, std::uint32_t& best_prim, Hit<float>& hit) const {
+        for (std::size_t i = first; i < end; ++i) {
+            const TriangleBlock<L>& b = blocks[i];
+            for (int k = 0; k < int(b.count); ++k)
+                if (confirm<AnyHit>(b, k, t_scale, tmax, tbox, best_prim, hit)) return true;
+        }
+        return false;
+    }
+
+protected:
+    /// The scalar test on lane k with the current tmax, recorded as test_leaf records it.
+    template <bool AnyHit>
+    DYNBVH_ALWAYS_INLINE bool confirm(const TriangleBlock<L>& b, int k, float t_scale, float& tmax, float& tbox,
+                                      std::uint32_t& best_prim, Hit<float>& hit) const {
+        float t, u, v;
+        if (!Tri::test(pt, b.triangle(k), tmax, t, u, v)) return false;
+        hit.t = t;
+        hit.u = u;
+        hit.v = v;
+        if constexpr (AnyHit) {
+            hit.prim = b.prim[k];
+            return true;
+        } else {
+            tmax = t;
+            tbox = t * t_scale;
+            best_prim = b.prim[k];
+            return false;
+        }
+    }
+};
+
+#if defined(DYNBVH_BLOCK_SSE)
+// A private minimal lane wrapper (to be replaced by detail/simd.hpp's).
+namespace block_lanes {
+struct L4 {
+    using reg = __m128;
+    static constexpr int n = 4;
+    static DYNBVH_ALWAYS_INLINE reg set1(float x) noexcept { return _mm_set1_ps(x); }
+    static DYNBVH_ALWAYS_INLINE reg load(const float* p) noexcept { return _mm_load_ps(p); }
+    static DYNBVH_ALWAYS_INLINE void store(float* p, reg a) noexcept { _mm_store_ps(p, a); }
+    static DYNBVH_ALWAYS_INLINE reg add(reg a, reg b) noexcept { return _mm_add_ps(a, b); }
+    static DYNBVH_ALWAYS_INLINE reg sub(reg a, reg b) noexcept { return _mm_sub_ps(a, b); }
+    static DYNBVH_ALWAYS_INLINE reg mul(reg a, reg b) noexcept { return _mm_mul_ps(a, b); }
+    static DYNBVH_ALWAYS_INLINE reg div(reg a, reg b) noexcept { return _mm_div_ps(a, b); }
+    /// a * b + c, fused where the target has FMA (only used where either rounding is fine)
+    static DYNBVH_ALWAYS_INLINE reg madd(reg a, reg b, reg c) noexcept {
+#if defined(__FMA__)
+        return _mm_fmadd_ps(a, b, c);
+#else
+        return _mm_add_ps(_mm_mul_ps(a, b), c);
+#endif
+    }
+    static DYNBVH_ALWAYS_INLINE reg abs(reg a) noexcept { return _mm_andnot_ps(_mm_set1_ps(-0.0f), a); }
+    static DYNBVH_ALWAYS_INLINE reg neg(reg a) noexcept { return _mm_xor_ps(_mm_set1_ps(-0.0f), a); }
+    static DYNBVH_ALWAYS_INLINE reg band(reg a, reg b) noexcept { return _mm_and_ps(a, b); }
+    static DYNBVH_ALWAYS_INLINE reg bor(reg a, reg b) noexcept { return _mm_or_ps(a, b); }
+    // ordered comparisons: false when either side is NaN
+    static DYNBVH_ALWAYS_INLINE reg gt(reg a, reg b) noexcept { return _mm_cmpgt_ps(a, b); }
+    static DYNBVH_ALWAYS_INLINE reg lt(reg a, reg b) noexcept { return _mm_cmplt_ps(a, b); }
+    static DYNBVH_ALWAYS_INLINE reg ge(reg a, reg b) noexcept { return _mm_cmpge_ps(a, b); }
+    static DYNBVH_ALWAYS_INLINE reg le(reg a, reg b) noexcept { return _mm_cmple_ps(a, b); }
+    static DYNBVH_ALWAYS_INLINE reg ne(reg a, reg b) noexcept { return _mm_cmpneq_ps(a, b); }   // true for NaN
+    static DYNBVH_ALWAYS_INLINE unsigned bits(reg m) noexcept { return unsigned(_mm_movemask_ps(m)); }
+};
+#if defined(DYNBVH_BLOCK_AVX)
+struct L8 {
+    using reg = __m256;
+    static constexpr int n = 8;
+    static DYNBVH_ALWAYS_INLINE reg set1(float x) noexcept { return _mm256_set1_ps(x); }
+    static DYNBVH_ALWAYS_INLINE reg load(const float* p) noexcept { return _mm256_load_ps(p); }
+    static DYNBVH_ALWAYS_INLINE void store(float* p, reg a) noexcept { _mm256_store_ps(p, a); }
+    static DYNBVH_ALWAYS_INLINE reg add(reg a, reg b) noexcept { return _mm256_add_ps(a, b); }
+    static DYNBVH_ALWAYS_INLINE reg sub(reg a, reg b) noexcept { return _mm256_sub_ps(a, b); }
+    static DYNBVH_ALWAYS_INLINE reg mul(reg a, reg b) noexcept { return _mm256_mul_ps(a, b); }
+    static DYNBVH_ALWAYS_INLINE reg div(reg a, reg b) noexcept { return _mm256_div_ps(a, b); }
+    static DYNBVH_ALWAYS_INLINE reg madd(reg a, reg b, reg c) noexcept {
+#if defined(__FMA__)
+        return _mm256_fmadd_ps(a, b, c);
+#else
+        return _mm256_add_ps(_mm256_mul_ps(a, b), c);
+#endif
+    }
+    static DYNBVH_ALWAYS_INLINE reg abs(reg a) noexcept { return _mm256_andnot_ps(_mm256_set1_ps(-0.0f), a); }
+    static DYNBVH_ALWAYS_INLINE reg neg(reg a) noexcept { return _mm256_xor_ps(_mm256_set1_ps(-0.0f), a); }
+    static DYNBVH_ALWAYS_INLINE reg band(reg a, reg b) noexcept { return _mm256_and_ps(a, b); }
+    static DYNBVH_ALWAYS_INLINE reg bor(reg a, reg b) noexcept { return _mm256_or_ps(a, b); }
+    static DYNBVH_ALWAYS_INLINE reg gt(reg a, reg b) noexcept { return _mm256_cmp_ps(a, b, _CMP_GT_OQ); }
+    static DYNBVH_ALWAYS_INLINE reg lt(reg a, reg b) noexcept { return _mm256_cmp_ps(a, b, _CMP_LT_OQ); }
+    static DYNBVH_ALWAYS_INLINE reg ge(reg a, reg b) noexcept { return _mm256_cmp_ps(a, b, _CMP_GE_OQ); }
+    static DYNBVH_ALWAYS_INLINE reg le(reg a, reg b) noexcept { return _mm256_cmp_ps(a, b, _CMP_LE_OQ); }
+    static DYNBVH_ALWAYS_INLINE reg ne(reg a, reg b) noexcept { return _mm256_cmp_ps(a, b, _CMP_NEQ_UQ); }
+    static DYNBVH_ALWAYS_INLINE unsigned bits(reg m) noexcept { return unsigned(_mm256_movemask_ps(m)); }
+};
+template <int L>
+using for_block = std::conditional_t<L == 8, L8, L4>;
+#else
+template <int L>
+using for_block = L4;   // 8 lanes in two SSE steps
+#endif
+} // namespace block_lanes
+
+/// tri::watertight on a block: the SIMD float filter, then the scalar test on the lanes it keeps
+/// (see the file comment for the exactness argument and the bound).
+template <int L>
+struct BlockTest<tri::watertight, L> {
+    using V = block_lanes::for_block<L>;
+    using R = typename V::reg;
+    using prepared = tri::watertight::prepared<float>;
+    prepared pt;
+
+    explicit BlockTest(const Ray<float>& r) noexcept : pt(r) {
+        kz_ = pt.kz;
+        kx_ = (kz_ + 1) % 3;
+        ky_ = (kz_ + 2) % 3;
+        ox_ = V::set1(pt.org[std::size_t(kx_)]);
+        oy_ = V::set1(pt.org[std::size_t(ky_)]);
+        oz_ = V::set1(pt.org[std::size_t(kz_)]);
+        sx_ = V::set1(pt.sx);
+        sy_ = V::set1(pt.sy);
+    }
+
+    /// Valid lanes the filter cannot reject (the scalar test misses every other lane, whatever tmax).
+    DYNBVH_ALWAYS_INLINE unsigned candidates(const TriangleBlock<L>& b) const noexcept {
+        constexpr float u = std::numeric_limits<float>::epsilon() * 0.5f;
+        const R k4u = V::set1(4.0f * u);                              // 4u: covers 3u(1 + u)^k
+        const R eta4 = V::set1(4.0f * std::numeric_limits<float>::denorm_min() * 0.5f);   // 4 eta = 2^-148
+        const R tau = V::set1(std::numeric_limits<float>::min());     // covers the eta terms and E's own underflow
+        const R limit = V::set1(0x1p60f);                             // below it nothing overflows
+        unsigned rejected = 0;
+        for (int h = 0; h < L; h += V::n) {
+            R x[3], y[3], P[3], D[3], Rb[3], Q[3];
+            R msum = V::set1(0.0f);
+            for (int i = 0; i < 3; ++i) {
+                // Step 1: translate and shear, exactly the scalar test's operations.
+                const R X = V::sub(V::load(&b.v[i][kx_][h]), ox_);
+                const R Y = V::sub(V::load(&b.v[i][ky_][h]), oy_);
+                const R Z = V::sub(V::load(&b.v[i][kz_][h]), oz_);
+                x[i] = V::sub(X, V::mul(sx_, Z));
+                y[i] = V::sub(Y, V::mul(sy_, Z));
+                // Step 2: per vertex, P = |x| + |y| and the shear uncertainty D = 4u M + 4 eta.
+                const R M = V::add(V::add(V::abs(X), V::abs(Y)), V::abs(Z));
+                msum = V::add(msum, M);
+                P[i] = V::add(V::abs(x[i]), V::abs(y[i]));
+                D[i] = V::madd(k4u, M, eta4);
+                Rb[i] = V::madd(k4u, P[i], D[i]);          // 4u P + D
+                Q[i] = V::add(P[i], V::add(D[i], D[i]));   // P + 2D
+            }
+            // Step 3: edge functions U (c, b), V (a, c), W (b, a) in float, each with its bound
+            // E(c, b) = Pc (4u Pb + Db) + Dc (Pb + 2 Db) + FLT_MIN.
+            const R fu = V::sub(V::mul(x[2], y[1]), V::mul(y[2], x[1]));
+            const R fv = V::sub(V::mul(x[0], y[2]), V::mul(y[0], x[2]));
+            const R fw = V::sub(V::mul(x[1], y[0]), V::mul(y[1], x[0]));
+            const R eu = V::add(V::madd(P[2], Rb[1], V::mul(D[2], Q[1])), tau);
+            const R ev = V::add(V::madd(P[0], Rb[2], V::mul(D[0], Q[2])), tau);
+            const R ew = V::add(V::madd(P[1], Rb[0], V::mul(D[1], Q[0])), tau);
+            // Step 4: certainly positive / negative (NaN: neither); reject on two opposite signs.
+            const R pu = V::gt(fu, eu), nu = V::lt(fu, V::neg(eu));
+            const R pv = V::gt(fv, ev), nv = V::lt(fv, V::neg(ev));
+            const R pw = V::gt(fw, ew), nw = V::lt(fw, V::neg(ew));
+            const R rej = V::bor(V::bor(V::band(pu, V::bor(nv, nw)), V::band(nu, V::bor(pv, pw))),
+                                 V::bor(V::band(pv, nw), V::band(nv, pw)));
+            const R ok = V::lt(msum, limit);   // false for NaN and infinity
+            rejected |= V::bits(V::band(rej, ok)) << h;
+        }
+        return b.valid_mask() & ~rejected;
+    }
+
+    template <bool AnyHit>
+    DYNBVH_ALWAYS_INLINE bool test(const TriangleBlock<L>* blocks, std::size_t first, std::size_t end, float t_scale, float& tmax,
+                                   float& tbox, std::uint32_t& best_prim, Hit<float>& hit) const {
+        for (std::size_t i = first; i < end; ++i) {
+            const TriangleBlock<L>& b = blocks[i];
+            for (unsigned m = candidates(b); m != 0; m &= m - 1) {
+                const int k = std::countr_zero(m);
+                float t, u, v;
+                if (!tri::watertight::test(pt, b.triangle(k), tmax, t, u, v)) continue;
+                hit.t = t;
+                hit.u = u;
+                hit.v = v;
+                if constexpr (AnyHit) {
+                    hit.prim = b.prim[k];
+                    return true;
+                } else {
+                    tmax = t;
+                    tbox = t * t_scale;
+                    best_prim = b.prim[k];
+                }
+            }
+        }
+        return false;
+    }
+
+private:
+    int kx_, ky_, kz_;
+    R ox_, oy_, oz_, sx_, sy_;
+};
+
+/// tri::moller_trumbore on a block: the scalar test's arithmetic lane by lane (same operations in the
+/// same order: cross and dot as in vec.hpp, one division), then tmax and the tie rule in slot order.
+template <int L>
+struct BlockTest<tri::moller_trumbore, L> {
+    using V = block_lanes::for_block<L>;
+    using R = typename V::reg;
+    using prepared = tri::moller_trumbore::prepared<float>;
+    prepared pt;
+
+    explicit BlockTest(const Ray<float>& r) noexcept
+        : pt(r), ox_(V::set1(pt.org.x)), oy_(V::set1(pt.org.y)), oz_(V::set1(pt.org.z)), dx_(V::set1(pt.dir.x)),
+          dy_(V::set1(pt.dir.y)), dz_(V::set1(pt.dir.z)), tmin_(V::set1(pt.tmin)) {}
+
+    /// Lanes hit within [tmin, tmax] (each lane on its own, as the scalar test), with t (before the -0
+    /// -> +0 step), u, v of every lane written to t[], u[], v[] (64-byte aligned arrays of L).
+    DYNBVH_ALWAYS_INLINE unsigned hits(const TriangleBlock<L>& b, float tmax, float* tt, float* uu, float* vv) const noexcept {
+        const R zero = V::set1(0.0f), one = V::set1(1.0f), tm = V::set1(tmax);
+        unsigned mask = 0;
+        for (int h = 0; h < L; h += V::n) {
+            const R p0x = V::load(&b.v[0][0][h]), p0y = V::load(&b.v[0][1][h]), p0z = V::load(&b.v[0][2][h]);
+            const R e1x = V::sub(V::load(&b.v[1][0][h]), p0x), e1y = V::sub(V::load(&b.v[1][1][h]), p0y),
+                    e1z = V::sub(V::load(&b.v[1][2][h]), p0z);
+            const R e2x = V::sub(V::load(&b.v[2][0][h]), p0x), e2y = V::sub(V::load(&b.v[2][1][h]), p0y),
+                    e2z = V::sub(V::load(&b.v[2][2][h]), p0z);
+            // pv = cross(dir, e2); det = dot(e1, pv)
+            const R pvx = V::sub(V::mul(dy_, e2z), V::mul(dz_, e2y));
+            const R pvy = V::sub(V::mul(dz_, e2x), V::mul(dx_, e2z));
+            const R pvz = V::sub(V::mul(dx_, e2y), V::mul(dy_, e2x));
+            const R det = V::add(V::add(V::mul(e1x, pvx), V::mul(e1y, pvy)), V::mul(e1z, pvz));
+            const R inv = V::div(one, det);
+            // tv = org - p0; u = dot(tv, pv) * inv
+            const R tvx = V::sub(ox_, p0x), tvy = V::sub(oy_, p0y), tvz = V::sub(oz_, p0z);
+            const R u = V::mul(V::add(V::add(V::mul(tvx, pvx), V::mul(tvy, pvy)), V::mul(tvz, pvz)), inv);
+            // qv = cross(tv, e1); v = dot(dir, qv) * inv; t = dot(e2, qv) * inv
+            const R qx = V::sub(V::mul(tvy, e1z), V::mul(tvz, e1y));
+            const R qy = V::sub(V::mul(tvz, e1x), V::mul(tvx, e1z));
+            const R qz = V::sub(V::mul(tvx, e1y), V::mul(tvy, e1x));
+            const R v = V::mul(V::add(V::add(V::mul(dx_, qx), V::mul(dy_, qy)), V::mul(dz_, qz)), inv);
+            const R t = V::mul(V::add(V::add(V::mul(e2x, qx), V::mul(e2y, qy)), V::mul(e2z, qz)), inv);
+            // the scalar test's conditions (NaN fails each, as there)
+            const R ok = V::band(V::band(V::band(V::ne(det, zero), V::ge(u, zero)), V::band(V::le(u, one), V::ge(v, zero))),
+                                 V::band(V::le(V::add(u, v), one), V::band(V::ge(t, tmin_), V::le(t, tm))));
+            V::store(tt + h, t);
+            V::store(uu + h, u);
+            V::store(vv + h, v);
+            mask |= V::bits(ok) << h;
+        }
+        return mask & b.valid_mask();
+    }
+
+    template <bool AnyHit>
+    DYNBVH_ALWAYS_INLINE bool test(const TriangleBlock<L>* blocks, std::size_t first, std::size_t end, float t_scale, float& tmax,
+                                   float& tbox, std::uint32_t& best_prim, Hit<float>& hit) const {
+        for (std::size_t i = first; i < end; ++i) {
+            const TriangleBlock<L>& b = blocks[i];
+            alignas(64) float t[L], u[L], v[L];
+            for (unsigned m = hits(b, tmax, t, u, v); m != 0; m &= m - 1) {
+                const int k = std::countr_zero(m);
+                if (!(t[k] <= tmax)) continue;   // an earlier lane of this block came closer
+                hit.t = t[k] + 0.0f;             // -0 -> +0, as the scalar test
+                hit.u = u[k];
+                hit.v = v[k];
+                if constexpr (AnyHit) {
+                    hit.prim = b.prim[k];
+                    return true;
+                } else {
+                    tmax = hit.t;
+                    tbox = hit.t * t_scale;
+                    best_prim = b.prim[k];
+                }
+            }
+        }
+        return false;
+    }
+
+private:
+    R ox_, oy_, oz_, dx_, dy_, dz_, tmin_;
+};
+#endif  // DYNBVH_BLOCK_SSE
+
+} // namespace dynbvh::detail
