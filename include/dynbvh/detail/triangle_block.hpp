@@ -65,6 +65,9 @@
 #endif
 
 namespace dynbvh::detail {
+#ifdef STATS
+extern std::size_t g_blocks, g_lanes, g_cand, g_hits;
+#endif
 
 /// Up to L triangles of one leaf, structure of arrays: v[vertex][axis][lane].
 template <int L>
@@ -76,14 +79,16 @@ struct alignas(64) TriangleBlock {
     std::uint32_t prim[L];     ///< the user's triangle index of each lane (invalid_prim for padding)
     std::uint32_t count;       ///< valid lanes 0..count-1; the others are padding (NaN vertices)
 
-    /// Every lane padding.
-    void clear() noexcept {
+    /// Lanes from `used` on become padding; `count` = used.
+    void pad(int used) noexcept {
         for (int i = 0; i < 3; ++i)
             for (int a = 0; a < 3; ++a)
-                for (int k = 0; k < L; ++k) v[i][a][k] = std::numeric_limits<float>::quiet_NaN();
-        for (int k = 0; k < L; ++k) prim[k] = invalid_prim;
-        count = 0;
+                for (int k = used; k < L; ++k) v[i][a][k] = std::numeric_limits<float>::quiet_NaN();
+        for (int k = used; k < L; ++k) prim[k] = invalid_prim;
+        count = std::uint32_t(used);
     }
+    /// Every lane padding.
+    void clear() noexcept { pad(0); }
     void set(int k, const Triangle<float>& t, std::uint32_t id) noexcept {
         for (int a = 0; a < 3; ++a) {
             v[0][a][k] = t.p0[std::size_t(a)];
@@ -129,13 +134,12 @@ void pack_triangle_blocks(std::span<const LeafRange> leaves, std::span<const Ind
         const LeafRange& leaf = leaves[j];
         TriangleBlock<L>* b = blocks.data() + first_block[j];
         for (std::size_t i = 0; i < leaf.count; i += std::size_t(L), ++b) {
-            b->clear();
             const std::size_t m = std::min<std::size_t>(std::size_t(L), leaf.count - i);
             for (std::size_t k = 0; k < m; ++k) {
                 const std::size_t slot = leaf.first + i + k;
                 b->set(int(k), tri_of(slot), static_cast<std::uint32_t>(prim_ids[slot]));
             }
-            b->count = std::uint32_t(m);
+            b->pad(int(m));
         }
     }, 256);
 }
@@ -286,31 +290,17 @@ struct BlockTest<tri::watertight, L> {
         const R limit = V::set1(0x1p60f);                             // below it nothing overflows
         unsigned rejected = 0;
         for (int h = 0; h < L; h += V::n) {
-            R x[3], y[3], P[3], D[3], Rb[3], Q[3];
-            R msum = V::set1(0.0f);
-            for (int i = 0; i < 3; ++i) {
-                // Step 1: translate and shear, exactly the scalar test's operations.
-                const R X = V::sub(V::load(&b.v[i][kx_][h]), ox_);
-                const R Y = V::sub(V::load(&b.v[i][ky_][h]), oy_);
-                const R Z = V::sub(V::load(&b.v[i][kz_][h]), oz_);
-                x[i] = V::sub(X, V::mul(sx_, Z));
-                y[i] = V::sub(Y, V::mul(sy_, Z));
-                // Step 2: per vertex, P = |x| + |y| and the shear uncertainty D = 4u M + 4 eta.
-                const R M = V::add(V::add(V::abs(X), V::abs(Y)), V::abs(Z));
-                msum = V::add(msum, M);
-                P[i] = V::add(V::abs(x[i]), V::abs(y[i]));
-                D[i] = V::madd(k4u, M, eta4);
-                Rb[i] = V::madd(k4u, P[i], D[i]);          // 4u P + D
-                Q[i] = V::add(P[i], V::add(D[i], D[i]));   // P + 2D
-            }
+            // (one call per vertex, not a loop over arrays: GCC keeps such arrays on the stack)
+            const Sheared a = shear(b, 0, h, k4u, eta4), bb = shear(b, 1, h, k4u, eta4), c = shear(b, 2, h, k4u, eta4);
+            const R msum = V::add(V::add(a.M, bb.M), c.M);
             // Step 3: edge functions U (c, b), V (a, c), W (b, a) in float, each with its bound
             // E(c, b) = Pc (4u Pb + Db) + Dc (Pb + 2 Db) + FLT_MIN.
-            const R fu = V::sub(V::mul(x[2], y[1]), V::mul(y[2], x[1]));
-            const R fv = V::sub(V::mul(x[0], y[2]), V::mul(y[0], x[2]));
-            const R fw = V::sub(V::mul(x[1], y[0]), V::mul(y[1], x[0]));
-            const R eu = V::add(V::madd(P[2], Rb[1], V::mul(D[2], Q[1])), tau);
-            const R ev = V::add(V::madd(P[0], Rb[2], V::mul(D[0], Q[2])), tau);
-            const R ew = V::add(V::madd(P[1], Rb[0], V::mul(D[1], Q[0])), tau);
+            const R fu = V::sub(V::mul(c.x, bb.y), V::mul(c.y, bb.x));
+            const R fv = V::sub(V::mul(a.x, c.y), V::mul(a.y, c.x));
+            const R fw = V::sub(V::mul(bb.x, a.y), V::mul(bb.y, a.x));
+            const R eu = V::add(V::madd(c.P, bb.Rb, V::mul(c.D, bb.Q)), tau);
+            const R ev = V::add(V::madd(a.P, c.Rb, V::mul(a.D, c.Q)), tau);
+            const R ew = V::add(V::madd(bb.P, a.Rb, V::mul(bb.D, a.Q)), tau);
             // Step 4: certainly positive / negative (NaN: neither); reject on two opposite signs.
             const R pu = V::gt(fu, eu), nu = V::lt(fu, V::neg(eu));
             const R pv = V::gt(fv, ev), nv = V::lt(fv, V::neg(ev));
@@ -328,10 +318,17 @@ struct BlockTest<tri::watertight, L> {
                                    float& tbox, std::uint32_t& best_prim, Hit<float>& hit) const {
         for (std::size_t i = first; i < end; ++i) {
             const TriangleBlock<L>& b = blocks[i];
-            for (unsigned m = candidates(b); m != 0; m &= m - 1) {
+            const unsigned cm = candidates(b);
+#ifdef STATS
+            ++g_blocks; g_lanes += b.count; g_cand += std::popcount(cm);
+#endif
+            for (unsigned m = cm; m != 0; m &= m - 1) {
                 const int k = std::countr_zero(m);
                 float t, u, v;
                 if (!tri::watertight::test(pt, b.triangle(k), tmax, t, u, v)) continue;
+#ifdef STATS
+                ++g_hits;
+#endif
                 hit.t = t;
                 hit.u = u;
                 hit.v = v;
@@ -349,6 +346,26 @@ struct BlockTest<tri::watertight, L> {
     }
 
 private:
+    /// One vertex: sheared x, y (the scalar test's operations), M = |X| + |Y| + |Z|, P = |x| + |y|, the
+    /// shear uncertainty D = 4u M + 4 eta, Rb = 4u P + D, Q = P + 2D.
+    struct Sheared {
+        R x, y, M, P, D, Rb, Q;
+    };
+    DYNBVH_ALWAYS_INLINE Sheared shear(const TriangleBlock<L>& b, int i, int h, R k4u, R eta4) const noexcept {
+        Sheared s;
+        const R X = V::sub(V::load(&b.v[i][kx_][h]), ox_);
+        const R Y = V::sub(V::load(&b.v[i][ky_][h]), oy_);
+        const R Z = V::sub(V::load(&b.v[i][kz_][h]), oz_);
+        s.x = V::sub(X, V::mul(sx_, Z));
+        s.y = V::sub(Y, V::mul(sy_, Z));
+        s.M = V::add(V::add(V::abs(X), V::abs(Y)), V::abs(Z));
+        s.P = V::add(V::abs(s.x), V::abs(s.y));
+        s.D = V::madd(k4u, s.M, eta4);
+        s.Rb = V::madd(k4u, s.P, s.D);
+        s.Q = V::add(s.P, V::add(s.D, s.D));
+        return s;
+    }
+
     int kx_, ky_, kz_;
     R ox_, oy_, oz_, sx_, sy_;
 };
