@@ -65,9 +65,6 @@
 #endif
 
 namespace dynbvh::detail {
-#ifdef STATS
-extern std::size_t g_blocks, g_lanes, g_cand, g_hits;
-#endif
 
 /// Up to L triangles of one leaf, structure of arrays: v[vertex][axis][lane].
 template <int L>
@@ -318,17 +315,10 @@ struct BlockTest<tri::watertight, L> {
                                    float& tbox, std::uint32_t& best_prim, Hit<float>& hit) const {
         for (std::size_t i = first; i < end; ++i) {
             const TriangleBlock<L>& b = blocks[i];
-            const unsigned cm = candidates(b);
-#ifdef STATS
-            ++g_blocks; g_lanes += b.count; g_cand += std::popcount(cm);
-#endif
-            for (unsigned m = cm; m != 0; m &= m - 1) {
+            for (unsigned m = candidates(b); m != 0; m &= m - 1) {
                 const int k = std::countr_zero(m);
                 float t, u, v;
                 if (!tri::watertight::test(pt, b.triangle(k), tmax, t, u, v)) continue;
-#ifdef STATS
-                ++g_hits;
-#endif
                 hit.t = t;
                 hit.u = u;
                 hit.v = v;
