@@ -144,9 +144,9 @@ int main(int argc, char** argv) {
     const exec::omp bex{.threads = build_threads};
     std::printf("dynbvh-bench-trace: %dx%d primary rays, %d reps (median), max leaf %u, Embree %s, SIMD %s\n", width,
                 height, reps, max_leaf, RTC_VERSION_STRING,
-#if defined(DYNBVH_WIDE_AVX)
+#if defined(DYNBVH_AVX)
                 "SSE, AVX for 8-wide nodes"
-#elif defined(DYNBVH_WIDE_SSE)
+#elif defined(DYNBVH_SSE)
                 "SSE2"
 #else
                 "none (scalar)"

@@ -4,10 +4,10 @@
 #include <algorithm>
 #include <numeric>
 
-#include <dynbvh/collapse.hpp>
+#include <dynbvh/detail/emit.hpp>
 #include <dynbvh/lbvh.hpp>
-#include <dynbvh/morton.hpp>
-#include <dynbvh/radix_sort.hpp>
+#include <dynbvh/detail/morton.hpp>
+#include <dynbvh/detail/radix_sort.hpp>
 #include <dynbvh/refit.hpp>
 
 using namespace dynbvh;

@@ -393,12 +393,12 @@ void check_simd_box_test() {
 TEST_CASE("SIMD box test (SSE; AVX for 8-wide nodes where compiled in) equals the scalar box test bit for bit") {
     check_simd_box_test<4>();
     check_simd_box_test<8>();
-#if defined(DYNBVH_WIDE_AVX)
+#if defined(DYNBVH_AVX)
     MESSAGE("8-wide nodes tested with AVX");
 #endif
 }
 
-#if defined(DYNBVH_WIDE_SSE)
+#if defined(DYNBVH_SSE)
 TEST_CASE("SSE ray setup gives box::robust::prepared's values, or declines") {
     // Random rays with +-0, subnormal, huge, NaN and infinite components and empty intervals: where the
     // direct setup accepts a ray, the ray is traceable, unscaled, the octant matches and every box test

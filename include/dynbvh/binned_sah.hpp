@@ -24,9 +24,9 @@
 #include <vector>
 
 #include "bvh.hpp"
-#include "collapse.hpp"
+#include "detail/emit.hpp"
 #include "executor.hpp"
-#include "references.hpp"
+#include "detail/references.hpp"
 
 namespace dynbvh::binned_sah {
 

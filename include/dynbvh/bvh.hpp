@@ -10,7 +10,7 @@
 #include <vector>
 
 #include "node.hpp"
-#include "scratch.hpp"
+#include "detail/scratch.hpp"
 #include "triangle.hpp"
 
 namespace dynbvh {

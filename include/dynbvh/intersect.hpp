@@ -26,34 +26,10 @@
 #include <type_traits>
 #include <utility>
 
+#include "detail/simd.hpp"
 #include "ray.hpp"
 #include "triangle.hpp"
 
-/// Forces inlining of the per-box and per-triangle tests into traversal loops (they are small, and a
-/// call per box costs more than the test).
-/// DYNBVH_NOINLINE keeps rarely taken paths out of those loops.
-#if defined(__GNUC__) || defined(__clang__)
-#if !defined(DYNBVH_ALWAYS_INLINE)
-#define DYNBVH_ALWAYS_INLINE inline __attribute__((always_inline))
-#endif
-#if !defined(DYNBVH_NOINLINE)
-#define DYNBVH_NOINLINE __attribute__((noinline))
-#endif
-#elif defined(_MSC_VER)
-#if !defined(DYNBVH_ALWAYS_INLINE)
-#define DYNBVH_ALWAYS_INLINE __forceinline
-#endif
-#if !defined(DYNBVH_NOINLINE)
-#define DYNBVH_NOINLINE __declspec(noinline)
-#endif
-#else
-#if !defined(DYNBVH_ALWAYS_INLINE)
-#define DYNBVH_ALWAYS_INLINE inline
-#endif
-#if !defined(DYNBVH_NOINLINE)
-#define DYNBVH_NOINLINE
-#endif
-#endif
 
 namespace dynbvh {
 

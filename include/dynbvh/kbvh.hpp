@@ -18,12 +18,12 @@
 
 #include "binned_sah.hpp"
 #include "bvh.hpp"
-#include "collapse.hpp"
+#include "detail/emit.hpp"
 #include "executor.hpp"
 #include "lbvh.hpp"
 #include "ploc.hpp"
 #include "presplit.hpp"
-#include "references.hpp"
+#include "detail/references.hpp"
 
 namespace dynbvh::kbvh {
 

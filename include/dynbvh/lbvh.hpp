@@ -5,7 +5,7 @@
 /// leaf walks up, each node knowing its key range [lo, hi]; its parent is the neighbouring node
 /// that shares the longer key prefix (split at hi, or at lo - 1), and the second child to arrive
 /// at a parent carries on. The walk computes each node's box and SAH leaf collapse on the way
-/// (collapse.hpp's CollapseRule), so no separate bottom-up pass is needed before emission.
+/// (detail/emit.hpp's CollapseRule), so no separate bottom-up pass is needed before emission.
 /// Equal codes are told apart by appending the sorted index to the key ("index augmentation"),
 /// so duplicates form a balanced subtree instead of a chain. Inner node ids are split positions
 /// (node p separates sorted references p and p + 1), so a node's id lies between its leaves.
@@ -22,11 +22,11 @@
 #include <vector>
 
 #include "bvh.hpp"
-#include "collapse.hpp"
+#include "detail/emit.hpp"
 #include "executor.hpp"
-#include "morton.hpp"
-#include "references.hpp"
-#include "scratch.hpp"
+#include "detail/morton.hpp"
+#include "detail/references.hpp"
+#include "detail/scratch.hpp"
 
 namespace dynbvh::lbvh {
 

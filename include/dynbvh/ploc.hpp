@@ -31,11 +31,11 @@
 #include <vector>
 
 #include "bvh.hpp"
-#include "collapse.hpp"
+#include "detail/emit.hpp"
 #include "executor.hpp"
-#include "morton.hpp"
-#include "references.hpp"
-#include "scratch.hpp"
+#include "detail/morton.hpp"
+#include "detail/references.hpp"
+#include "detail/scratch.hpp"
 
 namespace dynbvh::ploc {
 

@@ -3,7 +3,7 @@
 /// Bounding Volume Hierarchies" (HPG), section 5. Before a BVH is built, triangles whose boxes fit
 /// them badly (long, thin, diagonal) are cut into fragments with tight boxes, so the builder sees
 /// small, well-fitting references. A leaf that ends up with two fragments of one triangle tests it
-/// once (emit_bvh in collapse.hpp removes the duplicate).
+/// once (detail::emit_bvh in detail/emit.hpp removes the duplicate).
 ///
 /// The budget is s_max = floor(beta * m) extra fragments for m triangles. Each triangle t gets a
 /// priority p_t = (X^i_t * (A_aabb(t) - A_ideal(t)))^Y with the paper's X = 2, Y = 1/3, where
@@ -38,8 +38,8 @@
 
 #include "aabb.hpp"
 #include "executor.hpp"
-#include "morton.hpp"
-#include "references.hpp"
+#include "detail/morton.hpp"
+#include "detail/references.hpp"
 #include "triangle.hpp"
 
 namespace dynbvh::presplit {

@@ -18,6 +18,11 @@
 
 namespace dynbvh {
 
+template <class Scalar, class Index, int W>
+struct WideNode;  // wide.hpp
+template <class Scalar, class Index, class PrimPolicy, int W>
+struct WideBvh;   // wide.hpp
+
 /// Costs of the SAH and EPO: Ct per inner node visited, Ci per primitive intersected.
 /// Defaults are the study's (Ct = 3, Ci = 2, after the PLOC paper).
 struct SahConfig {
@@ -68,6 +73,38 @@ double sah_cost(const Bvh<NodeT, Prim>& bvh, const SahConfig& cfg = {}, const Ex
         },
         [](const detail::SahSums& a, const detail::SahSums& b) { return detail::SahSums::combine(a, b); });
     const double root = detail::box_area(nodes[0].min, nodes[0].max);
+    if (!(root > 0)) return cfg.ct * s.inner_n + cfg.ci * s.refs;
+    return (cfg.ct * s.inner + cfg.ci * s.leaf) / root;
+}
+
+/// SAH cost of a wide tree, the binary definition (sah.hpp) with wide nodes as inner nodes:
+/// (1 / SA(root)) * (Ct * sum over wide nodes SA(node) + Ci * sum over leaves SA(l) * count(l)),
+/// where SA(node) is the area of the union of its children's boxes (one visit tests all of them).
+/// The leaf term equals the binary tree's; the inner term sums a subset of its inner nodes.
+/// Degenerate roots as in sah_cost(Bvh). O(nodes), parallel over `ex`.
+template <class S, class I, class P, int W, class Exec = exec::serial>
+double sah_cost(const WideBvh<S, I, P, W>& wide, const SahConfig& cfg = {}, const Exec& ex = {}) {
+    if (wide.nodes.empty()) return 0.0;
+    const auto& nodes = wide.nodes;
+    const detail::SahSums s = ex.reduce(
+        std::size_t(0), nodes.size(), detail::SahSums{},
+        [&](std::size_t i) {
+            const WideNode<S, I, W>& n = nodes[i];
+            const AABB<S> b = n.bounds();
+            detail::SahSums r;
+            r.inner = detail::box_area(b.min, b.max);
+            r.inner_n = 1;
+            for (int k = 0; k < W; ++k) {
+                if (n.empty_slot(k) || !n.is_leaf(k)) continue;
+                const AABB<S> c = n.bounds(k);
+                r.leaf += detail::box_area(c.min, c.max) * double(n.count[k]);
+                r.refs += double(n.count[k]);
+            }
+            return r;
+        },
+        [](const detail::SahSums& a, const detail::SahSums& b) { return detail::SahSums::combine(a, b); });
+    const AABB<S> rb = nodes[0].bounds();
+    const double root = detail::box_area(rb.min, rb.max);
     if (!(root > 0)) return cfg.ct * s.inner_n + cfg.ci * s.refs;
     return (cfg.ct * s.inner + cfg.ci * s.leaf) / root;
 }

@@ -96,6 +96,35 @@ DYNBVH_ALWAYS_INLINE bool test_leaf(const typename Tri::template prepared<T>& pt
     return false;
 }
 
+/// Pops stack entries until one whose box can still hold a hit closer than `tbox` (box units) and
+/// stores it in `next`; false when the stack is empty (the traversal is done). Shared by the binary
+/// and the wide traversal loop.
+template <class Box, class Entry, class T>
+DYNBVH_ALWAYS_INLINE bool pop_closer(const Entry* stack, std::size_t& sp, T tbox, Entry& next) noexcept {
+    while (sp != 0) {
+        next = stack[--sp];
+        if (Box::before(next.tentry, tbox)) return true;
+    }
+    return false;
+}
+
+/// Runs `run(stack, cap, hit)`, a traversal that returns false when its stack of `cap` entries would
+/// overflow: on a fixed stack of FixedCap entries when `fits`; else, or after an overflow (a tree whose
+/// `depth` field is wrong), on a heap stack of `heap_entries`, which the caller sizes so that no
+/// traversal can overflow it. Shared by the binary and the wide traversal.
+template <class Entry, std::size_t FixedCap, class T, class Run>
+DYNBVH_ALWAYS_INLINE Hit<T> run_with_stack(bool fits, std::size_t heap_entries, Run&& run) {
+    if (fits) {
+        Entry stack[FixedCap];
+        Hit<T> hit;
+        if (run(stack, FixedCap, hit)) [[likely]] return hit;
+    }
+    std::vector<Entry> heap(heap_entries);
+    Hit<T> hit;
+    run(heap.data(), heap.size(), hit);
+    return hit;
+}
+
 /// The one traversal loop, for one ray direction octant `Oct` (box tests without run-time sign
 /// selects). `AnyHit` stops at the first hit. Returns false when the stack of `cap` entries would
 /// overflow (only possible for a tree whose `depth` field understates its depth); `hit` is then
@@ -147,17 +176,12 @@ bool traverse_octant(const Bvh<NodeT, Prim>& bvh, std::span<const Triangle<typen
                 return true;
         }
         // Pop the next subtree that can still hold a closer hit.
-        for (;;) {
-            if (sp == 0) {
-                if (best_slot != ~std::size_t(0)) hit.prim = static_cast<std::uint32_t>(ids[best_slot]);
-                return true;
-            }
-            const StackEntry<Index, T> e = stack[--sp];
-            if (Box::before(e.tentry, tbox)) {
-                cur = e.node;
-                break;
-            }
+        StackEntry<Index, T> next;
+        if (!pop_closer<Box>(stack, sp, tbox, next)) {
+            if (best_slot != ~std::size_t(0)) hit.prim = static_cast<std::uint32_t>(ids[best_slot]);
+            return true;
         }
+        cur = next.node;
     }
 }
 
@@ -182,17 +206,9 @@ Hit<typename NodeT::scalar_type> traverse(const Bvh<NodeT, Prim>& bvh,
             return traverse_octant<Policy, AnyHit, decltype(oct)::value>(bvh, tris, pb, pt, ray.tmax, hit, stack, cap);
         });
     };
-    if (bvh.depth <= max_depth) {
-        Entry stack[max_depth];
-        Hit<T> hit;
-        if (run(stack, max_depth, hit)) [[likely]] return hit;
-    }
-    // A tree deeper than max_depth (or one whose depth field is wrong): a heap stack as large as the
-    // tree, which no traversal can overflow (each node is pushed at most once).
-    std::vector<Entry> heap(bvh.nodes.size());
-    Hit<T> hit;
-    run(heap.data(), heap.size(), hit);
-    return hit;
+    // One entry per level; a deeper tree gets a heap stack as large as the tree (each node is pushed
+    // at most once).
+    return run_with_stack<Entry, max_depth, T>(bvh.depth <= max_depth, bvh.nodes.size(), run);
 }
 
 } // namespace detail

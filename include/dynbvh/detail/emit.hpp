@@ -1,4 +1,4 @@
-/// @file collapse.hpp
+/// @file detail/emit.hpp
 /// The step every builder ends with: a raw binary tree whose leaves are single
 /// references becomes the final `Bvh` layout. In one parallel bottom-up pass it
 /// computes node boxes and decides, by the surface area heuristic, which subtrees
@@ -18,8 +18,8 @@
 #include <span>
 #include <vector>
 
-#include "bvh.hpp"
-#include "executor.hpp"
+#include "../bvh.hpp"
+#include "../executor.hpp"
 #include "references.hpp"
 #include "scratch.hpp"
 

@@ -1,4 +1,4 @@
-/// @file morton.hpp
+/// @file detail/morton.hpp
 /// Morton (Z-order) codes of reference centres, shared by LBVH, PLOC and presplitting.
 /// Centres are quantised on a 2^k grid per axis over the centroid bounds (k = 10 for
 /// 30-bit codes in uint32_t, k = 21 for 63-bit codes in uint64_t) and their bits interleaved
@@ -12,7 +12,7 @@
 #include <span>
 #include <type_traits>
 
-#include "aabb.hpp"
+#include "../aabb.hpp"
 #include "radix_sort.hpp"
 #include "references.hpp"
 #include "scratch.hpp"

@@ -1,4 +1,4 @@
-/// @file scratch.hpp
+/// @file detail/scratch.hpp
 /// Scratch memory for the builders' temporary arrays. A dynamic scene rebuilds every
 /// frame with the same array sizes; fresh allocations of that size come from the kernel
 /// as new pages, and faulting them in (and zeroing them) can cost more than the build.
