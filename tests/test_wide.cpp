@@ -26,10 +26,7 @@
 #include <string>
 #include <vector>
 
-#if __has_include(<dynbvh/io/ply.hpp>)
 #include <dynbvh/io/ply.hpp>
-#define DYNBVH_TEST_HAVE_PLY 1
-#endif
 
 using namespace dynbvh;
 using dynbvh::test::Rng;
@@ -45,7 +42,7 @@ namespace {
 /// Independent check of a wide tree against the binary tree it came from and the triangles.
 /// Returns a description of every problem (empty when fine).
 template <class NodeT, class Prim, int W>
-std::string wide_problems(const Bvh<NodeT, Prim>& bvh, const WideBvh<typename NodeT::scalar_type, typename NodeT::index_type, Prim, W>& w,
+std::string wide_problems(const Bvh<NodeT, Prim>& bvh, const wide_bvh_of<Bvh<NodeT, Prim>, W>& w,
                           std::span<const Triangle<typename NodeT::scalar_type>> tris) {
     using S = typename NodeT::scalar_type;
     std::ostringstream err;
@@ -290,7 +287,7 @@ struct Median {
     Bvh<Node<T, std::conditional_t<std::is_same_v<T, float>, std::uint32_t, std::uint64_t>>, Prim>
     operator()(std::span<const Triangle<T>> tris) const {
         using NodeT = Node<T, std::conditional_t<std::is_same_v<T, float>, std::uint32_t, std::uint64_t>>;
-        return testing::median_build<NodeT, Prim>(tris, 3);
+        return test::median_build<NodeT, Prim>(tris, 3);
     }
 };
 struct Lbvh {
@@ -624,7 +621,7 @@ TEST_CASE("trees deeper than max_depth and a wrong depth field: heap stack, same
         tris.push_back({{-1, -1, z}, {3, -1, z}, {-1, 3, z}});
     }
     const std::span<const Trianglef> ts(tris);
-    const auto deep = testing::caterpillar_build<Node<>, prim::indexed>(ts);
+    const auto deep = test::caterpillar_build<Node<>, prim::indexed>(ts);
     auto check = [&](auto w) {
         CHECK(wide_problems(deep, w, ts) == "");
         MESSAGE("caterpillar: binary depth " << deep.depth << ", " << w.width << "-wide depth " << w.depth);
@@ -646,7 +643,6 @@ TEST_CASE("trees deeper than max_depth and a wrong depth field: heap stack, same
     check(make_wide<8>(deep));
 }
 
-#if defined(DYNBVH_TEST_HAVE_PLY)
 TEST_CASE("real data: cloth-ball frame, wide == binary on camera rays") {
     const std::string path = test::data_path("unc/cloth_ball92.ply");
     if (!test::have_data("unc/cloth_ball92.ply")) {
@@ -677,4 +673,3 @@ TEST_CASE("real data: cloth-ball frame, wide == binary on camera rays") {
     CHECK(hits > n / 10);
     CHECK(bad == 0);
 }
-#endif

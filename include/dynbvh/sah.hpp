@@ -18,9 +18,7 @@
 
 namespace dynbvh {
 
-template <class Scalar, class Index, int W>
-struct WideNode;  // wide.hpp
-template <class Scalar, class Index, class PrimPolicy, int W>
+template <class WideNodeT, class PrimPolicy>
 struct WideBvh;   // wide.hpp
 
 /// Costs of the SAH and EPO: Ct per inner node visited, Ci per primitive intersected.
@@ -82,14 +80,16 @@ double sah_cost(const Bvh<NodeT, Prim>& bvh, const SahConfig& cfg = {}, const Ex
 /// where SA(node) is the area of the union of its children's boxes (one visit tests all of them).
 /// The leaf term equals the binary tree's; the inner term sums a subset of its inner nodes.
 /// Degenerate roots as in sah_cost(Bvh). O(nodes), parallel over `ex`.
-template <class S, class I, class P, int W, class Exec = exec::serial>
-double sah_cost(const WideBvh<S, I, P, W>& wide, const SahConfig& cfg = {}, const Exec& ex = {}) {
+template <class WN, class P, class Exec = exec::serial>
+double sah_cost(const WideBvh<WN, P>& wide, const SahConfig& cfg = {}, const Exec& ex = {}) {
+    using S = typename WN::scalar_type;
+    constexpr int W = WN::width;
     if (wide.nodes.empty()) return 0.0;
     const auto& nodes = wide.nodes;
     const detail::SahSums s = ex.reduce(
         std::size_t(0), nodes.size(), detail::SahSums{},
         [&](std::size_t i) {
-            const WideNode<S, I, W>& n = nodes[i];
+            const WN& n = nodes[i];
             const AABB<S> b = n.bounds();
             detail::SahSums r;
             r.inner = detail::box_area(b.min, b.max);

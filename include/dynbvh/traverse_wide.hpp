@@ -167,17 +167,18 @@ struct WideStackEntry {
 /// The wide traversal loop for one direction octant; same contract as traverse_octant (traverse.hpp).
 /// Box distances are in box::robust's units (t * t_scale). The triangle test's per-ray setup is
 /// done when the first leaf is reached: most primary rays of an open scene never reach one.
-template <class Policy, bool AnyHit, int Oct, class S, class I, class P, int W>
-bool wide_traverse_octant(const WideBvh<S, I, P, W>& bvh, std::span<const Triangle<S>> tris, const Ray<S>& ray,
+template <class Policy, bool AnyHit, int Oct, class WN, class P, class S = typename WN::scalar_type,
+          class I = typename WN::index_type, int W = WN::width>
+bool wide_traverse_octant(const WideBvh<WN, P>& bvh, std::span<const Triangle<S>> tris, const Ray<S>& ray,
                           const S t_scale,
                           const WideBoxTest<typename Policy::box_test, S, W> wb, Hit<S>& hit,
                           WideStackEntry<I, S>* const stack, const std::size_t cap) {
     using Box = typename Policy::box_test;
     using Tri = typename Policy::triangle_test;
     using Entry = WideStackEntry<I, S>;
-    using WB = WideBvh<S, I, P, W>;
+    using WB = WideBvh<WN, P>;
 
-    const WideNode<S, I, W>* const nodes = bvh.nodes.data();
+    const WN* const nodes = bvh.nodes.data();
     const I* const ids = bvh.prim_ids.data();
     const Triangle<S>* const leaf_tris = WB::precomputed ? bvh.leaf_triangles.data() : tris.data();
     // The triangle test's setup, made at the first leaf. (Not std::optional: GCC zero-fills its storage
@@ -197,7 +198,7 @@ bool wide_traverse_octant(const WideBvh<S, I, P, W>& bvh, std::span<const Triang
     I cur = 0, cur_count = 0;
     for (;;) {
         if (cur_count == 0) {
-            const WideNode<S, I, W>& n = nodes[cur];
+            const WN& n = nodes[cur];
             alignas(32) S t[W];
             unsigned mask = wb.template test<Oct>(n, tbox, t);
             if (mask != 0) {
@@ -252,8 +253,9 @@ bool wide_traverse_octant(const WideBvh<S, I, P, W>& bvh, std::span<const Triang
 }
 
 /// Stack and octant dispatch around wide_traverse_octant for a prepared ray.
-template <class Policy, bool AnyHit, class S, class I, class P, int W>
-Hit<S> wide_run(const WideBvh<S, I, P, W>& bvh, std::span<const Triangle<S>> tris, const Ray<S>& ray,
+template <class Policy, bool AnyHit, class WN, class P, class S = typename WN::scalar_type, class I = typename WN::index_type,
+          int W = WN::width>
+Hit<S> wide_run(const WideBvh<WN, P>& bvh, std::span<const Triangle<S>> tris, const Ray<S>& ray,
                 const WideBoxTest<typename Policy::box_test, S, W>& wb, S t_scale, int octant) {
     using Entry = WideStackEntry<I, S>;
     auto run = [&](Entry* stack, std::size_t cap, Hit<S>& hit) {
@@ -267,8 +269,9 @@ Hit<S> wide_run(const WideBvh<S, I, P, W>& bvh, std::span<const Triangle<S>> tri
     return run_with_stack<Entry, fixed_cap, S>(bvh.depth < max_depth, std::size_t(W - 1) * (bvh.nodes.size() + 1), run);
 }
 
-template <class Policy, bool AnyHit, class S, class I, class P, int W>
-Hit<S> wide_traverse(const WideBvh<S, I, P, W>& bvh, std::span<const Triangle<S>> tris, const Ray<S>& ray) {
+template <class Policy, bool AnyHit, class WN, class P, class S = typename WN::scalar_type, class I = typename WN::index_type,
+          int W = WN::width>
+Hit<S> wide_traverse(const WideBvh<WN, P>& bvh, std::span<const Triangle<S>> tris, const Ray<S>& ray) {
     using Box = typename Policy::box_test;
     if (bvh.nodes.empty()) return {};
 #if defined(DYNBVH_SSE)
@@ -288,16 +291,16 @@ Hit<S> wide_traverse(const WideBvh<S, I, P, W>& bvh, std::span<const Triangle<S>
 } // namespace detail
 
 /// Closest hit in a wide BVH; same contract as intersect(Bvh, ...) in traverse.hpp.
-template <class Policy = trace::robust, class S, class I, class P, int W>
-Hit<S> intersect(const WideBvh<S, I, P, W>& bvh, std::type_identity_t<std::span<const Triangle<S>>> tris,
+template <class Policy = trace::robust, class WN, class P, class S = typename WN::scalar_type>
+Hit<S> intersect(const WideBvh<WN, P>& bvh, std::type_identity_t<std::span<const Triangle<S>>> tris,
                  const std::type_identity_t<Ray<S>>& ray) {
     detail::check_triangles(bvh, tris.size(), "intersect");
     return detail::wide_traverse<Policy, false>(bvh, tris, ray);
 }
 
 /// Any hit in a wide BVH; same contract as occluded(Bvh, ...) in traverse.hpp.
-template <class Policy = trace::robust, class S, class I, class P, int W>
-bool occluded(const WideBvh<S, I, P, W>& bvh, std::type_identity_t<std::span<const Triangle<S>>> tris,
+template <class Policy = trace::robust, class WN, class P, class S = typename WN::scalar_type>
+bool occluded(const WideBvh<WN, P>& bvh, std::type_identity_t<std::span<const Triangle<S>>> tris,
               const std::type_identity_t<Ray<S>>& ray) {
     detail::check_triangles(bvh, tris.size(), "occluded");
     return static_cast<bool>(detail::wide_traverse<Policy, true>(bvh, tris, ray));

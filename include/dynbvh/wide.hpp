@@ -112,46 +112,34 @@ struct alignas(64) WideNode {
 static_assert(sizeof(WideNode<>) == 128, "the default wide node is 128 bytes");
 static_assert(sizeof(WideNode<float, std::uint32_t, 8>) == 256, "the 8-wide node is 256 bytes");
 
-/// A 4-wide BVH (see the file comment). Made by `make_wide` from a binary `Bvh`.
-template <class Scalar = float, class Index = std::uint32_t, class PrimPolicy = prim::indexed, int W = 4>
-struct WideBvh {
-    using node_type = WideNode<Scalar, Index, W>;
-    static constexpr int width = W;
-    using scalar_type = Scalar;
-    using index_type = Index;
-    using prim_policy = PrimPolicy;
-    using triangle_type = Triangle<Scalar>;
-    static constexpr bool precomputed = std::is_same_v<PrimPolicy, prim::precomputed>;
+/// A wide BVH (see the file comment): wide nodes over the same LeafPart as the binary tree it was made
+/// from, `WideBvh<WideNodeT, Prim>` as `Bvh<NodeT, Prim>`. Made by `make_wide` from a binary `Bvh`.
+template <class WideNodeT = WideNode<>, class PrimPolicy = prim::indexed>
+struct WideBvh : LeafPart<typename WideNodeT::scalar_type, typename WideNodeT::index_type, PrimPolicy> {
+    using node_type = WideNodeT;
+    using leaf_part = LeafPart<typename WideNodeT::scalar_type, typename WideNodeT::index_type, PrimPolicy>;
+    using typename leaf_part::scalar_type;
+    using typename leaf_part::index_type;
+    using typename leaf_part::prim_policy;
+    using typename leaf_part::triangle_type;
+    using leaf_part::precomputed;
+    static constexpr int width = WideNodeT::width;
 
     /// Root at 0; the children of a node are adjacent (top levels breadth first, subtrees below them depth
-    /// first). Empty when there is nothing to trace. Allocated through the scratch cache (scratch.hpp):
-    /// a dynamic scene converting every frame reuses the previous frame's block instead of faulting in
-    /// and zeroing fresh pages.
+    /// first). Empty when there is nothing to trace. Allocated through the scratch cache
+    /// (detail/scratch.hpp): a dynamic scene converting every frame reuses the previous frame's block.
     scratch_vector<node_type> nodes;
-    /// As Bvh::prim_ids (leaf slot -> user triangle index).
-    scratch_vector<index_type> prim_ids;
-    /// prim::precomputed only: as Bvh::leaf_triangles.
-    scratch_vector<triangle_type> leaf_triangles;
     /// Edges from the root to the deepest wide node (a leaf slot of that node is one level deeper).
     std::uint32_t depth = 0;
-    std::size_t primitive_count = 0;   ///< as Bvh::primitive_count
-    std::size_t excluded = 0;          ///< as Bvh::excluded
 
     bool empty() const noexcept { return nodes.empty(); }
     AABB<scalar_type> bounds() const noexcept { return empty() ? AABB<scalar_type>{} : nodes[0].bounds(); }
-    std::size_t memory_bytes() const noexcept {
-        return nodes.size() * sizeof(node_type) + prim_ids.size() * sizeof(index_type) +
-               leaf_triangles.size() * sizeof(triangle_type);
-    }
-    const triangle_type& triangle(std::span<const triangle_type> tris, std::size_t slot) const noexcept {
-        if constexpr (precomputed) return leaf_triangles[slot];
-        else return tris[prim_ids[slot]];
-    }
+    std::size_t memory_bytes() const noexcept { return nodes.size() * sizeof(node_type) + this->leaf_bytes(); }
 };
 
-/// The WideBvh type `make_wide` returns for a binary Bvh type.
+/// The WideBvh type `make_wide<W>` returns for a binary Bvh type.
 template <class B, int W = 4>
-using wide_bvh_of = WideBvh<typename B::scalar_type, typename B::index_type, typename B::prim_policy, W>;
+using wide_bvh_of = WideBvh<WideNode<typename B::scalar_type, typename B::index_type, W>, typename B::prim_policy>;
 
 namespace detail {
 
@@ -307,29 +295,22 @@ void collapse_to_wide(const Bvh<NodeT, Prim>& bvh, wide_bvh_of<Bvh<NodeT, Prim>,
 } // namespace detail
 
 /// Converts a binary BVH into a 4-wide one (see the file comment): the same leaves, wide nodes
-/// collapsed greedily by surface area. prim_ids and leaf_triangles are copied. O(nodes), parallel
+/// collapsed greedily by surface area. The leaf part (bvh.hpp) is copied. O(nodes), parallel
 /// over `ex`.
 template <int W = 4, class NodeT, class Prim, class Exec = exec::serial>
 wide_bvh_of<Bvh<NodeT, Prim>, W> make_wide(const Bvh<NodeT, Prim>& bvh, const Exec& ex = {}) {
     wide_bvh_of<Bvh<NodeT, Prim>, W> w;
+    w.leaves() = bvh.leaves();
     detail::collapse_to_wide<W>(bvh, w, ex);
-    w.prim_ids = bvh.prim_ids;
-    w.leaf_triangles = bvh.leaf_triangles;
-    w.primitive_count = bvh.primitive_count;
-    w.excluded = bvh.excluded;
     return w;
 }
 
-/// As above, taking over prim_ids and leaf_triangles instead of copying them (the binary tree is
-/// left empty).
+/// As above, taking over the leaf part instead of copying it (the binary tree is left empty).
 template <int W = 4, class NodeT, class Prim, class Exec = exec::serial>
 wide_bvh_of<Bvh<NodeT, Prim>, W> make_wide(Bvh<NodeT, Prim>&& bvh, const Exec& ex = {}) {
     wide_bvh_of<Bvh<NodeT, Prim>, W> w;
+    w.leaves() = std::move(bvh.leaves());
     detail::collapse_to_wide<W>(bvh, w, ex);
-    w.prim_ids = std::move(bvh.prim_ids);
-    w.leaf_triangles = std::move(bvh.leaf_triangles);
-    w.primitive_count = bvh.primitive_count;
-    w.excluded = bvh.excluded;
     bvh = Bvh<NodeT, Prim>{};
     return w;
 }
