@@ -84,13 +84,7 @@ BinaryTree radix_tree(std::span<const Key> keys, const References<T>& refs, cons
             const std::uint32_t far = other[p].exchange(left_child ? lo : hi, std::memory_order_acq_rel);
             if (far == none) return;   // the sibling is not finished: it carries on
             (left_child ? hi : lo) = far;
-            if (info) {
-                RawNodeInfo<T> l, r;
-                const std::uint32_t a = tree.left[p], b = tree.right[p];
-                if (BinaryTree::is_leaf(a)) rule.leaf(refs.box[BinaryTree::ref_of(a)], l); else l = info[a];
-                if (BinaryTree::is_leaf(b)) rule.leaf(refs.box[BinaryTree::ref_of(b)], r); else r = info[b];
-                rule.parent(l, r, info[p]);
-            }
+            if (info) rule.node(tree, refs, info, p);
             node = p;
             if (lo == 0 && hi == last) { root = p; return; }
         }
