@@ -12,7 +12,7 @@
 #include <vector>
 
 using namespace dynbvh;
-using dynbvh::testing::median_build;
+using dynbvh::test::median_build;
 
 namespace {
 

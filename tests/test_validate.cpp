@@ -11,17 +11,11 @@
 #include <string>
 #include <vector>
 
-#if __has_include(<dynbvh/lbvh.hpp>)
 #include <dynbvh/lbvh.hpp>
-#define DYNBVH_TEST_HAVE_LBVH 1
-#endif
-#if __has_include(<dynbvh/kbvh.hpp>)
 #include <dynbvh/kbvh.hpp>
-#define DYNBVH_TEST_HAVE_KBVH 1
-#endif
 
 using namespace dynbvh;
-using dynbvh::testing::median_build;
+using dynbvh::test::median_build;
 
 namespace {
 
@@ -225,7 +219,6 @@ TEST_CASE("presplit-style fragments: coverage of each triangle by its leaves' bo
     CHECK(mentions(hole, "not covered"));
 }
 
-#if defined(DYNBVH_TEST_HAVE_LBVH)
 TEST_CASE("LBVH trees validate") {
     const auto tris = soup(3000, 4);
     const auto a = lbvh::build<Node<>, prim::indexed>(std::span<const Trianglef>(tris), {}, exec::serial{});
@@ -233,9 +226,7 @@ TEST_CASE("LBVH trees validate") {
     CHECK_MESSAGE(validate(a, tris).ok(), validate(a, tris).summary());
     CHECK_MESSAGE(validate(b, tris).ok(), validate(b, tris).summary());
 }
-#endif
 
-#if defined(DYNBVH_TEST_HAVE_KBVH)
 TEST_CASE("presplit KBVH trees validate with fragment coverage") {
     // Long thin triangles, so that presplitting actually splits.
     std::mt19937 rng(5);
@@ -251,4 +242,3 @@ TEST_CASE("presplit KBVH trees validate with fragment coverage") {
     CHECK_MESSAGE(r.ok(), r.summary());
     MESSAGE("kbvh: " << r.references << " references for " << tris.size() << " triangles");
 }
-#endif
