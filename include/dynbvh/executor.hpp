@@ -2,7 +2,7 @@
 /// Threading backends as one policy type passed to every builder: `exec::serial`,
 /// `exec::omp` (OpenMP; compile with -fopenmp, or link dynbvh::omp) and `exec::tbb`
 /// (oneTBB; define DYNBVH_WITH_TBB, or link dynbvh::tbb). Algorithms contain no
-/// threading code of their own: they call these five primitives.
+/// threading code of their own: they call these six primitives.
 ///
 ///  - concurrency()                  number of workers
 ///  - for_each(b, e, f(i))           parallel loop
@@ -218,7 +218,8 @@ private:
 };
 #endif
 
-/// What every backend offers; builders are constrained on it.
+/// The least a backend offers (a check for backends of your own). Builders take any type with the
+/// six primitives above and are not constrained on this concept.
 template <class E>
 concept Executor = requires(const E& e) {
     { e.concurrency() } -> std::convertible_to<std::size_t>;

@@ -1,8 +1,8 @@
 /// @file refit.hpp
 /// Bottom-up refit: keeps a tree's topology and recomputes every box from the
 /// triangles' current positions — the cheap alternative to a rebuild when a frame's
-/// motion is small (the tree's quality decays as the motion grows; compare SAH
-/// before and after, see `should_rebuild`). Works for every builder's output.
+/// motion is small (the tree's quality decays as the motion grows; compare `sah_cost`
+/// (sah.hpp) before and after to decide when to rebuild). Works for every builder's output.
 /// Presplit fragments are refitted to their whole triangle's box (no re-clipping).
 #pragma once
 
@@ -15,7 +15,7 @@
 namespace dynbvh {
 
 /// Recomputes all boxes of `bvh` from `tris` (same triangle count and indexing as at build time).
-/// For prim::precomputed the leaf triangles are updated too. O(nodes + references): leaves in
+/// For prim::copied the leaf triangles are updated too. O(nodes + references): leaves in
 /// parallel, inner nodes in one reverse sweep (children always follow their parent in the layout).
 template <class NodeT, class Prim, class Exec = exec::default_executor>
 void refit(Bvh<NodeT, Prim>& bvh, std::span<const Triangle<typename NodeT::scalar_type>> tris, const Exec& ex = {}) {
