@@ -8,7 +8,7 @@
 // Stanford bunny and dragon from DYNBVH_DATA_DIR when present (a camera that frames the mesh).
 // Trees: LBVH, PLOC (r = 5) and binned SAH, prim::indexed, each traced binary (traverse.hpp) and
 // converted to 4-wide and 8-wide ("wide8") nodes (wide.hpp); trace::robust unless the row says "fast";
-// "pre" = prim::precomputed. 8-wide nodes are tested with AVX when compiled with it (-march=native,
+// "pre" = prim::copied. 8-wide nodes are tested with AVX when compiled with it (-march=native,
 // DYNBVH_NATIVE), else in two SSE steps.
 // Rays: one per pixel through the pixel centre, tiles of 16x16 pixels handed to OpenMP threads
 // dynamically (Embree's device gets the same thread count). Each rep traces every method once
@@ -165,7 +165,7 @@ int main(int argc, char** argv) {
         auto lb = lbvh::build(tris, {.leaves = leaves}, bex);
         auto pl = ploc::build(tris, {.radius = 5, .leaves = leaves}, bex);
         auto sb = binned_sah::build(tris, {.leaves = leaves}, bex);
-        auto plp = ploc::build<Node<>, prim::precomputed>(tris, {.radius = 5, .leaves = leaves}, bex);
+        auto plp = ploc::build<Node<>, prim::copied>(tris, {.radius = 5, .leaves = leaves}, bex);
         std::vector<double> t_lbvh, t_conv, t_conv_ploc, t_lbvh1, t_conv1, t_conv8;
         for (int r = 0; r < std::max(reps, 5); ++r) {
             auto t0 = Clock::now();
@@ -254,7 +254,7 @@ int main(int argc, char** argv) {
 
         std::printf("\n== %s: %zu triangles, %zu rays, %.1f%% hit; wide!=binary rays (4-wide/8-wide):%s; hit/miss differs from embree-low on %zu rays\n",
                     sname.c_str(), tris.size(), nrays, 100.0 * double(hits) / double(nrays), agree.c_str(), emb_diff);
-        const SahConfig sc3{.ct = 3, .ci = 2};
+        const SahCost sc3{.ct = 3, .ci = 2};
         std::printf("   SAH binary/wide: lbvh %.2f/%.2f  ploc %.2f/%.2f  sah %.2f/%.2f;  wide nodes (depth) lbvh %zu (%u) ploc %zu (%u) sah %zu (%u)\n",
                     sah_cost(lb, sc3), sah_cost(lw, sc3), sah_cost(pl, sc3), sah_cost(pw, sc3), sah_cost(sb, sc3),
                     sah_cost(sw, sc3), lw.nodes.size(), lw.depth, pw.nodes.size(), pw.depth, sw.nodes.size(), sw.depth);

@@ -2,6 +2,8 @@
 #include "support.hpp"
 
 #include <algorithm>
+#include <stdexcept>
+#include <string>
 
 #include <dynbvh/detail/emit.hpp>
 #include <dynbvh/lbvh.hpp>
@@ -46,10 +48,10 @@ TEST_CASE("emit: no leaf exceeds max_leaf_size; a huge Ci keeps one triangle per
         CHECK(structure_problems(bvh, tris) == "");
     }
     // Huge intersection cost: collapsing never pays, every leaf holds one triangle.
-    const auto fine = lbvh::build(tris, {.leaves = {.max_leaf_size = 8, .traversal_cost = 0.0f, .intersection_cost = 1e6f}});
+    const auto fine = lbvh::build(tris, {.leaves = {.max_leaf_size = 8, .cost = {.ct = 0, .ci = 1e6}}});
     for (const auto& n : fine.nodes) if (n.is_leaf()) REQUIRE(n.count == 1);
     // Free intersections: everything that may collapse does (leaves hold max_leaf_size where possible).
-    const auto coarse = lbvh::build(tris, {.leaves = {.max_leaf_size = 8, .traversal_cost = 1.0f, .intersection_cost = 0.0f}});
+    const auto coarse = lbvh::build(tris, {.leaves = {.max_leaf_size = 8, .cost = {.ct = 1, .ci = 0}}});
     CHECK(coarse.nodes.size() < fine.nodes.size() / 4);
 }
 
@@ -66,11 +68,22 @@ TEST_CASE("emit: two fragments of one triangle in one leaf become one reference"
     t.right = {BinaryTree::leaf(2), BinaryTree::leaf(1)};
     t.root = 0;
     // Traversal made expensive so the SAH collapses everything into one leaf.
-    const auto bvh = emit_bvh<Node<>, prim::precomputed>(t, refs, std::span<const Trianglef>(tris),
-                                                         LeafConfig{.traversal_cost = 100.0f}, exec::serial{});
+    const auto bvh = emit_bvh<Node<>, prim::copied>(t, refs, std::span<const Trianglef>(tris),
+                                                         LeafConfig{.cost = {.ct = 100}}, exec::serial{});
     REQUIRE(bvh.nodes.size() == 1);
     CHECK(bvh.nodes[0].count == 2);
     CHECK(bvh.prim_ids[0] == 0);
     CHECK(bvh.prim_ids[1] == 1);
     CHECK(bvh.leaf_triangles[1].p0 == tris[1].p0);
+}
+
+TEST_CASE("emit: BinaryTree::check_size throws std::length_error naming the builder from 2^31 references on") {
+    CHECK_NOTHROW(BinaryTree::check_size(BinaryTree::leaf_flag - 1, "dynbvh::lbvh"));
+    std::string what;
+    try {
+        BinaryTree::check_size(BinaryTree::leaf_flag, "dynbvh::ploc");
+    } catch (const std::length_error& e) {
+        what = e.what();
+    }
+    CHECK(what == "dynbvh::ploc: 2147483648 references exceed the limit of 2^31 - 1");
 }

@@ -3,7 +3,14 @@
 
 #include <algorithm>
 
+#include <dynbvh/binned_sah.hpp>
+#include <dynbvh/kbvh.hpp>
 #include <dynbvh/lbvh.hpp>
+#include <dynbvh/ploc.hpp>
+
+#include <stdexcept>
+#include <string>
+#include <type_traits>
 
 using namespace dynbvh;
 using namespace dynbvh::test;
@@ -29,10 +36,10 @@ TEST_CASE("lbvh: valid structure on soup, sphere, flat, identical centroids, 0-2
                 CAPTURE(bits);
                 const auto a = lbvh::build(tris, {.morton_bits = bits}, ex);
                 CHECK(structure_problems(a, tris) == "");
-                const auto b = lbvh::build<Node<double, std::uint64_t>, prim::precomputed>(
+                const auto b = lbvh::build<Node<double, std::uint64_t>, prim::copied>(
                     std::span<const Triangle<double>>(), {.morton_bits = bits}, ex);
                 CHECK(b.empty());
-                const auto c = lbvh::build<Node<>, prim::precomputed>(tris, {.morton_bits = bits}, ex);
+                const auto c = lbvh::build<Node<>, prim::copied>(tris, {.morton_bits = bits}, ex);
                 CHECK(structure_problems(c, tris) == "");
             }
         });
@@ -53,4 +60,56 @@ TEST_CASE("lbvh: every executor builds the serial tree node for node") {
                    b.nodes[i].bounds() == ref.nodes[i].bounds();
         CHECK(same);
     });
+}
+
+TEST_CASE("lbvh: a std::vector of double triangles builds a Bvh<Node<double>> with the float tree's topology") {
+    const auto tris = random_soup(3000, 4);
+    std::vector<Triangled> dtris;
+    for (const auto& t : tris) dtris.push_back({Vec3d(t.p0), Vec3d(t.p1), Vec3d(t.p2)});
+    const auto d = lbvh::build(dtris);
+    static_assert(std::is_same_v<std::remove_const_t<decltype(d)>, Bvh<Node<double>>>);
+    const auto f = lbvh::build(tris);
+    static_assert(std::is_same_v<std::remove_const_t<decltype(f)>, Bvh<Node<>>>);
+    REQUIRE(d.nodes.size() == f.nodes.size());
+    CHECK(d.primitive_count == dtris.size());
+    bool boxes_hold = true;
+    for (const auto& n : d.nodes)
+        if (n.is_leaf())
+            for (auto s = n.index; s < n.index + n.count; ++s) boxes_hold = boxes_hold && n.bounds().contains(dtris[d.prim_ids[s]].bounds());
+    CHECK(boxes_hold);
+    // The other builders deduce the node type the same way.
+    static_assert(std::is_same_v<decltype(ploc::build(dtris)), Bvh<Node<double>>>);
+    static_assert(std::is_same_v<decltype(binned_sah::build(dtris)), Bvh<Node<double>>>);
+    static_assert(std::is_same_v<decltype(kbvh::build(dtris)), Bvh<Node<double>>>);
+}
+
+TEST_CASE("lbvh: morton_bits other than 30 or 63 throws std::invalid_argument naming lbvh and morton_bits") {
+    const auto tris = random_soup(100, 2);
+    for (int bits : {0, 29, 31, 32, 62, 64}) {
+        CAPTURE(bits);
+        std::string what;
+        try {
+            (void)lbvh::build(tris, {.morton_bits = bits});
+        } catch (const std::invalid_argument& e) {
+            what = e.what();
+        }
+        CHECK(what == "dynbvh::lbvh: morton_bits must be 30 or 63, got " + std::to_string(bits));
+    }
+    CHECK_NOTHROW((void)lbvh::build(tris, {.morton_bits = 63}));
+}
+
+TEST_CASE("prim::precomputed is still accepted as the deprecated name of prim::copied") {
+#if defined(__GNUC__)
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wdeprecated-declarations"
+#endif
+    static_assert(std::is_same_v<prim::precomputed, prim::copied>);
+    const auto tris = random_soup(200, 3);
+    const auto old = lbvh::build<Node<>, prim::precomputed>(tris);
+#if defined(__GNUC__)
+#pragma GCC diagnostic pop
+#endif
+    const auto now = lbvh::build<Node<>, prim::copied>(tris);
+    CHECK(old.leaf_triangles.size() == now.leaf_triangles.size());
+    CHECK(structure_problems(old, tris) == "");
 }

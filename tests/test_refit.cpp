@@ -10,7 +10,7 @@ using namespace dynbvh::test;
 TEST_CASE("refit: after every triangle moves, each box is the union of its triangles or children") {
     auto tris = sphere(32, 64);
     for_each_executor([&](auto ex) {
-        auto bvh = lbvh::build<Node<>, prim::precomputed>(tris, {}, ex);
+        auto bvh = lbvh::build<Node<>, prim::copied>(tris, {}, ex);
         auto moved = tris;
         Rng r(3);
         for (auto& t : moved) {

@@ -169,7 +169,7 @@ void check_scene(const std::vector<Triangle<typename NodeT::scalar_type>>& tris,
     CHECK(hits > rays.size() / 5);
 
     const auto bi = build.template operator()<NodeT, prim::indexed>(tris);
-    const auto bp = build.template operator()<NodeT, prim::precomputed>(tris);
+    const auto bp = build.template operator()<NodeT, prim::copied>(tris);
     const ValidateConfig vc{};
     const auto vi = validate(bi, tris, vc), vp = validate(bp, tris, vc);
     REQUIRE_MESSAGE(vi.ok(), vi.summary());
@@ -301,7 +301,7 @@ TEST_CASE("empty BVH and empty input") {
 
 TEST_CASE("single triangle and two triangles") {
     const std::vector<Trianglef> one = {{{0, 0, 0}, {1, 0, 0}, {0, 1, 0}}};
-    const auto b1 = median_build<Node<>, prim::precomputed>(one);
+    const auto b1 = median_build<Node<>, prim::copied>(one);
     REQUIRE(b1.nodes.size() == 1);
     const Hitf h = intersect(b1, one, Rayf{{0.25f, 0.25f, 1}, {0, 0, -1}});
     REQUIRE(h);
@@ -400,7 +400,7 @@ TEST_CASE("closed mesh through a BVH: rays from inside aimed at edges and vertic
         face(a, -1);
         face(a, 1);
     }
-    const auto bvh = median_build<Node<>, prim::precomputed>(tris, 2);
+    const auto bvh = median_build<Node<>, prim::copied>(tris, 2);
     REQUIRE(validate(bvh, tris).ok());
     std::mt19937 rng(17);
     std::uniform_real_distribution<float> d(-0.9f, 0.9f), s(0, 1);

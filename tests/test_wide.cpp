@@ -240,7 +240,7 @@ std::size_t check_exact(const std::vector<Triangle<T>>& tris, std::size_t nrays,
     const std::span<const Triangle<T>> ts(tris);
     const auto rays = make_rays(tris, test::sanitizer_scaled(nrays), 99);
     const auto bi = build.template operator()<prim::indexed>(ts);
-    const auto bp = build.template operator()<prim::precomputed>(ts);
+    const auto bp = build.template operator()<prim::copied>(ts);
     const auto wi = make_wide(bi), wp = make_wide(bp);
     const auto w8 = make_wide<8>(bi), w8p = make_wide<8>(bp);
     CHECK_MESSAGE(wide_problems(bi, wi, ts) == "", what);
@@ -488,7 +488,7 @@ TEST_CASE("conversion: empty tree, one triangle, one leaf, moved tree") {
     CHECK_THROWS_AS(intersect(w1, std::span<const Trianglef>(), Rayf{{0.25f, 0.25f, 1}, {0, 0, -1}}), std::invalid_argument);
 
     const auto soup = test::random_soup(3000, 8);
-    auto b = lbvh::build<Node<>, prim::precomputed>(std::span<const Trianglef>(soup));
+    auto b = lbvh::build<Node<>, prim::copied>(std::span<const Trianglef>(soup));
     const auto copied = make_wide(b);
     const auto moved = make_wide(std::move(b));
     CHECK(b.empty());

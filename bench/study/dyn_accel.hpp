@@ -33,7 +33,7 @@ void trace_tiles(const Backend& backend, const RayGen& gen, std::span<std::uint3
     });
 }
 
-/// A DynAccel<Exec, prim::indexed or prim::precomputed> for `spec` (one of our builders).
+/// A DynAccel<Exec, prim::indexed or prim::copied> for `spec` (one of our builders).
 template <class Exec>
 std::unique_ptr<Accel> make_dyn_accel(const BuilderSpec& spec, const Exec& ex, const Backend& backend);
 
@@ -59,7 +59,7 @@ struct Trees {
     std::size_t memory_bytes(const BuilderSpec& spec) const;
 };
 extern template struct Trees<prim::indexed>;
-extern template struct Trees<prim::precomputed>;
+extern template struct Trees<prim::copied>;
 
 /// Our builders on executor Exec with primitive policy Prim.
 template <class Exec, class Prim>
@@ -123,7 +123,7 @@ public:
     void trace(std::span<const Trianglef> tris, const RayGen& gen, std::span<std::uint32_t> out) override {
         current_.trace(spec_, backend_, tris, gen, out);
     }
-    std::optional<double> sah() const override { return sah_cost(current_.bvh, SahConfig{.ct = 3, .ci = 2}, ex_); }
+    std::optional<double> sah() const override { return sah_cost(current_.bvh, SahCost{.ct = 3, .ci = 2}, ex_); }
     std::optional<std::size_t> memory_bytes() const override { return current_.memory_bytes(spec_); }
     /// Single-ray queries (effect rays) go through the same tree as trace().
     Hitf intersect(std::span<const Trianglef> tris, const Rayf& r) const override { return current_.intersect(spec_, tris, r); }
@@ -140,7 +140,7 @@ private:
 
 template <class Exec>
 std::unique_ptr<Accel> make_dyn_accel(const BuilderSpec& spec, const Exec& ex, const Backend& backend) {
-    if (spec.precomputed) return std::make_unique<accel_impl::DynAccel<Exec, prim::precomputed>>(spec, ex, backend);
+    if (spec.precomputed) return std::make_unique<accel_impl::DynAccel<Exec, prim::copied>>(spec, ex, backend);
     return std::make_unique<accel_impl::DynAccel<Exec, prim::indexed>>(spec, ex, backend);
 }
 

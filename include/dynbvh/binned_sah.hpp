@@ -301,21 +301,15 @@ BinaryTree build_tree(const References<T>& refs, const Config& cfg, const Exec& 
     if (cfg.bins < 2)
         throw std::invalid_argument("dynbvh::binned_sah: bins must be >= 2, got " + std::to_string(cfg.bins));
     const std::size_t n = refs.size();
-    if (n >= BinaryTree::leaf_flag)
-        throw std::length_error("dynbvh::binned_sah: " + std::to_string(n) + " references exceed the limit of 2^31 - 1");
-    BinaryTree tree;
-    if (n == 0) return tree;
-    if (n == 1) {
-        tree.root = BinaryTree::leaf(0);
-        return tree;
-    }
+    BinaryTree tree = BinaryTree::start(n, "dynbvh::binned_sah");
+    if (n < 2) return tree;
     tree.left.assign(n - 1, 0);
     tree.right.assign(n - 1, 0);
 
     std::vector<Item<T>> items(n);
     ex.for_each(0, n, [&](std::size_t i) { items[i] = {refs.box[i], static_cast<std::uint32_t>(i)}; });
 
-    // Nodes above this size are split data-parallel one at a time, top down; the rest become
+    // Step 1: nodes above this size are split data-parallel one at a time, top down; the rest become
     // independent subtrees. Fixed by n alone, so every executor builds the same tree.
     const std::size_t large = std::max<std::size_t>(4096, n / 128);
     const std::uint32_t k = cfg.bins;
@@ -384,7 +378,8 @@ BinaryTree build_tree(const References<T>& refs, const Config& cfg, const Exec& 
         queue.push_back(right_child);
     }
 
-    // Each subtree of s references owns s - 1 consecutive inner node ids.
+    // Step 2: the subtrees, one serial task each; a subtree of s references owns s - 1 consecutive
+    // inner node ids.
     std::vector<std::uint32_t> first(subtrees.size());
     for (std::size_t i = 0; i < subtrees.size(); ++i) {
         first[i] = next_id;
@@ -413,6 +408,13 @@ Bvh<NodeT, Prim> build(std::span<const Triangle<typename NodeT::scalar_type>> tr
     auto refs = make_references(tris, ex);
     const auto tree = build_tree(refs, cfg, ex);
     return emit_bvh<NodeT, Prim>(tree, refs, tris, cfg.leaves, ex);
+}
+
+/// The same for a std::vector of triangles of any scalar, the node type following the triangles:
+/// `dynbvh::binned_sah::build(std::vector<Triangled>{...})` is a Bvh<Node<double>>.
+template <int = 0, class T, class Exec = exec::default_executor>
+Bvh<Node<T>> build(const std::vector<Triangle<T>>& tris, const Config& cfg = {}, const Exec& ex = {}) {
+    return build<Node<T>, prim::indexed, Exec>(std::span<const Triangle<T>>(tris), cfg, ex);
 }
 
 } // namespace dynbvh::binned_sah

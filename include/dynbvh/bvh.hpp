@@ -24,9 +24,11 @@ namespace prim {
 /// Leaves index the user's triangle array (`tris[prim_ids[slot]]`). Smallest tree;
 /// the user's array must stay alive and unchanged (or be refitted) while tracing.
 struct indexed {};
-/// The Bvh keeps its own copy of the triangles in leaf order, so traversal reads
-/// contiguous memory (faster tracing, 36 extra bytes per reference).
-struct precomputed {};
+/// The tree keeps its own copy of the triangles in leaf order (`leaf_triangles`), so traversal
+/// reads contiguous memory (faster tracing, 36 extra bytes per float reference); refit updates it.
+struct copied {};
+/// The former name of prim::copied (it copies, it precomputes nothing).
+using precomputed [[deprecated("use dynbvh::prim::copied")]] = copied;
 } // namespace prim
 
 /// The leaf part every tree shares, binary (`Bvh`) or wide (`WideBvh`, wide.hpp): the references its
@@ -38,12 +40,13 @@ struct LeafPart {
     using index_type = Index;
     using prim_policy = PrimPolicy;
     using triangle_type = Triangle<Scalar>;
-    static constexpr bool precomputed = std::is_same_v<PrimPolicy, prim::precomputed>;
+    /// Whether leaves read `leaf_triangles` (prim::copied) instead of the user's array.
+    static constexpr bool precomputed = std::is_same_v<PrimPolicy, prim::copied>;
 
     /// Leaf slot -> index of the user's triangle. A triangle split by presplitting may appear in several
     /// leaves, but at most once per leaf. Large blocks come from the scratch cache (detail/scratch.hpp).
     scratch_vector<index_type> prim_ids;
-    /// prim::precomputed only: copy of tris[prim_ids[slot]] for every slot.
+    /// prim::copied only: copy of tris[prim_ids[slot]] for every slot.
     scratch_vector<triangle_type> leaf_triangles;
     /// Input triangles given to the builder.
     std::size_t primitive_count = 0;
@@ -66,16 +69,12 @@ struct LeafPart {
 
 /// A binary BVH over triangles: nodes (see node.hpp) over a LeafPart.
 /// @tparam NodeT       node layout (see node.hpp), default 32-byte float/uint32 node
-/// @tparam PrimPolicy  prim::indexed (default) or prim::precomputed
+/// @tparam PrimPolicy  prim::indexed (default) or prim::copied
 template <class NodeT = Node<>, class PrimPolicy = prim::indexed>
 struct Bvh : LeafPart<typename NodeT::scalar_type, typename NodeT::index_type, PrimPolicy> {
     using node_type = NodeT;
     using leaf_part = LeafPart<typename NodeT::scalar_type, typename NodeT::index_type, PrimPolicy>;
-    using typename leaf_part::scalar_type;
-    using typename leaf_part::index_type;
-    using typename leaf_part::prim_policy;
-    using typename leaf_part::triangle_type;
-    using leaf_part::precomputed;
+    using scalar_type = typename NodeT::scalar_type;   // the rest (index_type, prim_policy, ...) from LeafPart
 
     /// Root at 0; an inner node's children are adjacent (see node.hpp). Empty when there is nothing to trace.
     /// The arrays are std::vectors whose large blocks come from the scratch cache (detail/scratch.hpp):
@@ -88,7 +87,7 @@ struct Bvh : LeafPart<typename NodeT::scalar_type, typename NodeT::index_type, P
 
     bool empty() const noexcept { return nodes.empty(); }
     AABB<scalar_type> bounds() const noexcept { return empty() ? AABB<scalar_type>{} : nodes[0].bounds(); }
-    /// Bytes held by the tree (nodes, references and precomputed triangles).
+    /// Bytes held by the tree (nodes, references and copied leaf triangles).
     std::size_t memory_bytes() const noexcept { return nodes.size() * sizeof(NodeT) + this->leaf_bytes(); }
 };
 

@@ -60,11 +60,8 @@ template <class Key, class T, class Exec>
 BinaryTree radix_tree(std::span<const Key> keys, const References<T>& refs, const CollapseRule<T>& rule,
                       RawNodeInfo<T>* info, const Exec& ex) {
     const std::size_t n = keys.size();
-    BinaryTree tree;
-    if (n == 0) return tree;
-    if (n >= BinaryTree::leaf_flag)
-        throw std::length_error("dynbvh::lbvh: " + std::to_string(n) + " references exceed the limit of 2^31 - 1");
-    if (n == 1) { tree.root = BinaryTree::leaf(0); return tree; }
+    BinaryTree tree = BinaryTree::start(n, "dynbvh::lbvh");
+    if (n < 2) return tree;
     tree.left.resize(n - 1);
     tree.right.resize(n - 1);
     constexpr std::uint32_t none = std::numeric_limits<std::uint32_t>::max();
@@ -96,8 +93,9 @@ BinaryTree radix_tree(std::span<const Key> keys, const References<T>& refs, cons
 /// Sorts `refs` along the Morton curve and builds the radix tree (and the node facts, see radix_tree).
 template <class T, class Exec>
 BinaryTree build_tree(References<T>& refs, const Config& cfg, RawNodeInfo<T>* info, const Exec& ex) {
+    morton::check_bits(cfg.morton_bits, "dynbvh::lbvh");
     const CollapseRule<T> rule(cfg.leaves);
-    if (cfg.morton_bits > 30) {
+    if (cfg.morton_bits == 63) {
         const auto keys = morton::sort_references<std::uint64_t>(refs, ex);
         return radix_tree<std::uint64_t>(std::span<const std::uint64_t>(keys), refs, rule, info, ex);
     }
@@ -109,7 +107,7 @@ BinaryTree build_tree(References<T>& refs, const Config& cfg, RawNodeInfo<T>* in
 
 /// Raw LBVH topology over `refs` (see BinaryTree). Reorders `refs` into Morton order; the
 /// tree's leaf ids index the reordered refs. Used by kbvh (presplit + LBVH).
-/// Throws std::length_error beyond 2^31 - 1 references.
+/// Throws std::invalid_argument for morton_bits other than 30 or 63, std::length_error beyond 2^31 - 1 references.
 template <class T, class Exec>
 BinaryTree build_tree(References<T>& refs, const Config& cfg, const Exec& ex) {
     return detail::build_tree(refs, cfg, static_cast<detail::RawNodeInfo<T>*>(nullptr), ex);
@@ -117,7 +115,7 @@ BinaryTree build_tree(References<T>& refs, const Config& cfg, const Exec& ex) {
 
 /// Builds an LBVH over `tris`. One line: `auto bvh = dynbvh::lbvh::build(tris);`
 /// Triangles with NaN/infinite vertices are left out and counted in Bvh::excluded.
-/// @tparam NodeT node layout, @tparam Prim prim::indexed or prim::precomputed, @tparam Exec backend.
+/// @tparam NodeT node layout, @tparam Prim prim::indexed or prim::copied, @tparam Exec backend.
 template <class NodeT = Node<>, class Prim = prim::indexed, class Exec = exec::default_executor>
 Bvh<NodeT, Prim> build(std::span<const Triangle<typename NodeT::scalar_type>> tris, const Config& cfg = {}, const Exec& ex = {}) {
     using T = typename NodeT::scalar_type;
@@ -126,6 +124,13 @@ Bvh<NodeT, Prim> build(std::span<const Triangle<typename NodeT::scalar_type>> tr
     scratch_vector<detail::RawNodeInfo<T>> info(refs.size() > 1 ? refs.size() - 1 : 0);
     const auto tree = detail::build_tree(refs, cfg, info.data(), ex);
     return dynbvh::detail::emit_from_info<NodeT, Prim>(tree, refs, tris, std::span<const detail::RawNodeInfo<T>>(info), ex);
+}
+
+/// The same for a std::vector of triangles of any scalar, the node type following the triangles:
+/// `dynbvh::lbvh::build(std::vector<Triangled>{...})` is a Bvh<Node<double>>.
+template <int = 0, class T, class Exec = exec::default_executor>
+Bvh<Node<T>> build(const std::vector<Triangle<T>>& tris, const Config& cfg = {}, const Exec& ex = {}) {
+    return build<Node<T>, prim::indexed, Exec>(std::span<const Triangle<T>>(tris), cfg, ex);
 }
 
 } // namespace dynbvh::lbvh

@@ -69,7 +69,7 @@ void check_triangles(const Tree& bvh, std::size_t given, const char* fn) {
 }
 
 /// Tests the triangles of leaf slots [first, end) (slot i is triangle ids[i], or leaf_tris[i] for
-/// precomputed trees). Each hit narrows tmax and tbox = tmax * t_scale (the box tests' units) and is
+/// prim::copied trees). Each hit narrows tmax and tbox = tmax * t_scale (the box tests' units) and is
 /// kept in `hit`/`best_slot`; with AnyHit the first hit sets hit.prim and returns true (stop).
 /// Shared by the binary and the wide traversal (wide.hpp).
 template <class Tri, bool AnyHit, bool Precomputed, class T, class Index>
@@ -215,7 +215,7 @@ Hit<typename NodeT::scalar_type> traverse(const Bvh<NodeT, Prim>& bvh,
 
 /// Closest hit of `ray` in `bvh` with t in [ray.tmin, ray.tmax]: t, barycentrics (u, v) and the user's
 /// triangle index (`Hit::prim`, never a leaf slot or fragment); no hit when `prim == invalid_prim`
-/// (`if (hit)`). `tris` is the array the BVH was built over (unused for prim::precomputed; for
+/// (`if (hit)`). `tris` is the array the BVH was built over (unused for prim::copied; for
 /// prim::indexed a span shorter than `bvh.primitive_count` throws std::invalid_argument).
 /// Cost: O(visited nodes); no allocation unless `bvh.depth > max_depth`.
 template <class Policy = trace::robust, class NodeT, class Prim>

@@ -70,7 +70,7 @@ struct ValidationReport {
 ///    in the box of some leaf referencing it (exact), and its edge midpoints and centroid too (within a
 ///    few ulps of the triangle's coordinates), i.e. the fragments cover the triangle;
 ///  - depth: measured depth == `bvh.depth` and <= `max_depth`;
-///  - prim::precomputed: `leaf_triangles[slot] == tris[prim_ids[slot]]` for every slot.
+///  - prim::copied: `leaf_triangles[slot] == tris[prim_ids[slot]]` for every slot.
 /// Cost: O(nodes + references + triangles) time and memory, serial.
 template <class NodeT, class Prim>
 ValidationReport validate(const Bvh<NodeT, Prim>& bvh, std::span<const Triangle<typename NodeT::scalar_type>> tris,

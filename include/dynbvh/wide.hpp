@@ -1,52 +1,26 @@
 /// @file wide.hpp
-/// A 4- or 8-wide BVH converted from any binary `Bvh`, and its single-ray traversal.
+/// A 4- or 8-wide BVH converted from any binary `Bvh`. Including this header is enough to trace it
+/// (traverse_wide.hpp: intersect / occluded, the same answers as on the binary tree).
 /// @code
 ///   auto bvh  = dynbvh::lbvh::build(tris, {}, ex);
 ///   auto wide = dynbvh::make_wide(std::move(bvh), ex);        // O(n), parallel over `ex` (or copy: make_wide(bvh, ex))
-///   auto w8   = dynbvh::make_wide<8>(other_bvh, ex);          // 8 children per node (best with AVX, see below)
+///   auto w8   = dynbvh::make_wide<8>(other_bvh, ex);          // 8 children per node (best with AVX)
 ///   auto hit  = dynbvh::intersect(wide, tris, ray);           // same answer as intersect(bvh, ...)
-///   bool occ  = dynbvh::occluded<dynbvh::trace::fast>(wide, tris, ray);
 /// @endcode
 ///
-/// Layout: a `WideNode<Scalar, Index, W>` (W = 4 by default, or 8) holds the boxes of up to W children in
-/// structure-of-arrays form (lo_x[W], hi_x[W], lo_y[W], ...), so one traversal step tests all W boxes
-/// with one SIMD instruction per slab plane. Each child slot is an inner node (count 0, `child` = node index),
-/// a leaf (`child` = first slot of prim_ids, `count` references) or empty (an inverted box
-/// +inf/-inf that every box test misses). WideNode<float, uint32_t> is 128 bytes (two cache lines,
-/// 64-byte aligned): 32 bytes per child, as many as a binary node; the 8-wide node is 256 bytes. Leaves, prim_ids and the
-/// precomputed triangles are the binary tree's, unchanged.
+/// Layout: a `WideNode<Scalar, Index, W>` holds the boxes of up to W children in structure-of-arrays
+/// form (lo_x[W], hi_x[W], ...), so one traversal step tests all W boxes with one SIMD instruction per
+/// slab plane. A slot is an inner node (count 0, `child` = node index), a leaf (`child` = first
+/// prim_ids slot, `count` references) or empty (an inverted box every test misses).
+/// WideNode<float, uint32_t, 4> is 128 bytes (32 per child, as a binary node), the 8-wide node 256.
+/// The leaf part (bvh.hpp: prim_ids, leaf triangles, counts) is the binary tree's, unchanged.
 ///
 /// Collapse (after Wald et al. 2008 "Getting rid of packets", and Pinto 2010): each wide node starts
-/// from a binary inner node's two children and repeatedly replaces the inner child of largest surface
-/// area by its two children until it has W children or only leaves. Wide nodes are therefore a
-/// subset of the binary inner nodes, with their boxes unchanged: leaf boxes and leaf contents are the
-/// binary tree's, and the SAH of the wide tree (`sah_cost(WideBvh)`) has the same leaf term and a
-/// smaller inner term. The conversion collapses the top serially and then 256 subtrees in parallel
-/// tasks (two parallel steps), O(binary nodes) work, the same tree on every executor; it is a build
-/// step and should be timed as one (a few tens of percent of an LBVH build, see bench_trace.cpp).
-///
-/// SIMD: with SSE2 (every x86-64 compiler; `__SSE2__` or MSVC's `_M_X64`) the four box tests of a
-/// node use `<immintrin.h>` SSE intrinsics (FMA for box::fast when the compiler targets it); an 8-wide
-/// node takes two SSE steps, or one AVX step when the compiler targets AVX (`__AVX__`, e.g. -mavx2 or
-/// -march=native). Fewer, wider nodes mean fewer traversal steps per ray: on the bunny's primary rays
-/// 2.1 nodes per ray instead of 2.75. Every
-/// other target uses a scalar loop that calls the box policy's own `test_octant` for each slot:
-/// the SSE and AVX paths perform the same IEEE operations in the same order (max/min operand order
-/// chosen so that NaN and +-0 resolve as in detail::max_keep/min_keep), so all give the same hits. The
-/// scalar path is also what `-DDYNBVH_NO_SIMD` selects (tests/test_wide.cpp passes either way). The
-/// library does not choose instruction sets: the user's compiler flags do (-march=... enables FMA
-/// and AVX). For float rays and box::robust, the per-ray setup (finite
-/// and non-degenerate checks, 1 / dir, octant) is also done in SSE when it can give exactly
-/// box::robust::prepared's values (no subnormal direction component), else through that struct. The
-/// triangle test's setup waits for the first leaf: most primary rays of open scenes reach none.
-///
-/// Exactness: as in traverse.hpp. trace::robust's box test is box::robust (Ize 2013) evaluated on
-/// four boxes at once with the same conservative exit margin, so `intersect(wide, ...)` returns what
-/// `brute_force_intersect` returns (t to the bit; an exact tie may name another triangle), and the
-/// same as `intersect(bvh, ...)` on the binary tree. Traversal visits the hit children nearest
-/// first (the others go on a fixed stack with their entry distance and are skipped once a closer hit
-/// is known). The stack holds W - 1 entries per wide level; a tree deeper than max_depth, or one whose
-/// `depth` is wrong, is traced with a heap stack that cannot overflow.
+/// from a binary inner node's two children and repeatedly opens the inner child of largest surface
+/// area until it has W children or only leaves. Wide nodes are a subset of the binary inner nodes with
+/// their boxes unchanged, so `sah_cost(WideBvh)` has the binary tree's leaf term and a smaller inner
+/// term. The top is collapsed serially, then 256 subtrees in parallel tasks: O(binary nodes), the
+/// same tree on every executor; a build step, to be timed as one (see bench_trace.cpp).
 #pragma once
 
 #include <algorithm>
@@ -68,7 +42,7 @@
 
 namespace dynbvh {
 
-/// One node of a 4-wide BVH: the boxes of up to four children, structure of arrays.
+/// One node of a W-wide BVH (W = 4 or 8): the boxes of up to W children, structure of arrays.
 /// Slot k: `count[k] == 0` and a valid box: inner child, node `child[k]`; `count[k] > 0`: leaf of
 /// `count[k]` references from prim_ids slot `child[k]`; inverted box (lo = +inf, hi = -inf): empty.
 template <class Scalar = float, class Index = std::uint32_t, int W = 4>
@@ -118,11 +92,7 @@ template <class WideNodeT = WideNode<>, class PrimPolicy = prim::indexed>
 struct WideBvh : LeafPart<typename WideNodeT::scalar_type, typename WideNodeT::index_type, PrimPolicy> {
     using node_type = WideNodeT;
     using leaf_part = LeafPart<typename WideNodeT::scalar_type, typename WideNodeT::index_type, PrimPolicy>;
-    using typename leaf_part::scalar_type;
-    using typename leaf_part::index_type;
-    using typename leaf_part::prim_policy;
-    using typename leaf_part::triangle_type;
-    using leaf_part::precomputed;
+    using scalar_type = typename WideNodeT::scalar_type;   // the rest (index_type, prim_policy, ...) from LeafPart
     static constexpr int width = WideNodeT::width;
 
     /// Root at 0; the children of a node are adjacent (top levels breadth first, subtrees below them depth
@@ -143,9 +113,9 @@ using wide_bvh_of = WideBvh<WideNode<typename B::scalar_type, typename B::index_
 
 namespace detail {
 
-/// Opens binary inner node `b` into up to four children `c` (returns how many): starting from its two
+/// Opens binary inner node `b` into up to W children `c` (returns how many): starting from its two
 /// children, the inner child of largest surface area is replaced by its two children while fewer than
-/// four and some child is inner.
+/// W and some child is inner.
 template <int W, class NodeT>
 inline int open_wide(std::span<const NodeT> bin, typename NodeT::index_type b, typename NodeT::index_type* c) {
     c[0] = bin[b].left();
@@ -157,7 +127,7 @@ inline int open_wide(std::span<const NodeT> bin, typename NodeT::index_type b, t
         for (int k = 0; k < n; ++k) {
             const NodeT& ck = bin[c[k]];
             if (ck.is_leaf()) continue;
-            const double a = box_area(ck.min, ck.max);
+            const double a = area(ck.bounds());
             if (a > best_area) {
                 best_area = a;
                 best = k;
@@ -232,11 +202,13 @@ void collapse_to_wide(const Bvh<NodeT, Prim>& bvh, wide_bvh_of<Bvh<NodeT, Prim>,
         wide.depth = std::max(wide.depth, depth);
         return id;
     };
+    // Step 1: the top, breadth first and serially, until `target` subtrees are pending.
     expand_top(Index(0), 0);
     while (head < queue.size() && queue.size() - head < target) {
         const Pending p = queue[head++];
         top[p.parent].child[p.slot] = expand_top(p.bin, p.depth);
     }
+    // Step 2: each pending subtree depth first by one task, into its own array.
     const std::size_t tasks = queue.size() - head;
     std::vector<scratch_vector<WNode>> local(tasks);
     std::vector<std::uint32_t> local_depth(tasks, 0);
@@ -268,6 +240,7 @@ void collapse_to_wide(const Bvh<NodeT, Prim>& bvh, wide_bvh_of<Bvh<NodeT, Prim>,
         }
         local_depth[k] = deepest;
     });
+    // Step 3: place the arrays after the top and link them in; then copy them with shifted child indices.
     std::vector<std::size_t> base(tasks);
     std::size_t total = top.size();
     for (std::size_t k = 0; k < tasks; ++k) {
@@ -294,10 +267,10 @@ void collapse_to_wide(const Bvh<NodeT, Prim>& bvh, wide_bvh_of<Bvh<NodeT, Prim>,
 
 } // namespace detail
 
-/// Converts a binary BVH into a 4-wide one (see the file comment): the same leaves, wide nodes
+/// Converts a binary BVH into a W-wide one (see the file comment): the same leaves, wide nodes
 /// collapsed greedily by surface area. The leaf part (bvh.hpp) is copied. O(nodes), parallel
 /// over `ex`.
-template <int W = 4, class NodeT, class Prim, class Exec = exec::serial>
+template <int W = 4, class NodeT, class Prim, class Exec = exec::default_executor>
 wide_bvh_of<Bvh<NodeT, Prim>, W> make_wide(const Bvh<NodeT, Prim>& bvh, const Exec& ex = {}) {
     wide_bvh_of<Bvh<NodeT, Prim>, W> w;
     w.leaves() = bvh.leaves();
@@ -306,7 +279,7 @@ wide_bvh_of<Bvh<NodeT, Prim>, W> make_wide(const Bvh<NodeT, Prim>& bvh, const Ex
 }
 
 /// As above, taking over the leaf part instead of copying it (the binary tree is left empty).
-template <int W = 4, class NodeT, class Prim, class Exec = exec::serial>
+template <int W = 4, class NodeT, class Prim, class Exec = exec::default_executor>
 wide_bvh_of<Bvh<NodeT, Prim>, W> make_wide(Bvh<NodeT, Prim>&& bvh, const Exec& ex = {}) {
     wide_bvh_of<Bvh<NodeT, Prim>, W> w;
     w.leaves() = std::move(bvh.leaves());

@@ -17,21 +17,17 @@
 #include <limits>
 #include <memory>
 #include <span>
+#include <stdexcept>
+#include <string>
 #include <vector>
 
 #include "../bvh.hpp"
+#include "../cost.hpp"
 #include "../executor.hpp"
 #include "references.hpp"
 #include "scratch.hpp"
 
 namespace dynbvh {
-
-/// Leaf collapse knobs shared by every builder.
-struct LeafConfig {
-    std::uint32_t max_leaf_size = 8;  ///< most references in one leaf (1 disables collapsing)
-    float traversal_cost = 3.0f;      ///< Ct of the collapse decision (study: 3)
-    float intersection_cost = 2.0f;   ///< Ci of the collapse decision (study: 2)
-};
 
 /// A builder's raw output: topology only. Inner nodes are 0 .. left.size()-1 in any order;
 /// a child id with `leaf_flag` set is a reference index (into References) instead.
@@ -44,6 +40,20 @@ struct BinaryTree {
     static constexpr std::uint32_t ref_of(std::uint32_t id) noexcept { return id & ~leaf_flag; }
     static constexpr std::uint32_t leaf(std::uint32_t ref) noexcept { return ref | leaf_flag; }
     std::size_t inner_count() const noexcept { return left.size(); }
+    /// Throws std::length_error naming `builder` when `refs` references cannot be told from leaf-flagged ids.
+    static void check_size(std::size_t refs, const char* builder) {
+        if (refs >= leaf_flag)
+            throw std::length_error(std::string(builder) + ": " + std::to_string(refs) +
+                                    " references exceed the limit of 2^31 - 1");
+    }
+    /// A builder's start over `refs` references: the size checked (check_size), and the finished tree
+    /// when refs < 2 (empty, or one reference as the root).
+    static BinaryTree start(std::size_t refs, const char* builder) {
+        check_size(refs, builder);
+        BinaryTree t;
+        if (refs == 1) t.root = leaf(0);
+        return t;
+    }
 };
 
 namespace detail {
@@ -67,8 +77,9 @@ struct CollapseRule {
     float ct, ci;
     std::uint32_t max_leaf;
 
+    // Evaluated in float: the facts are per raw node, and float keeps them small.
     explicit CollapseRule(const LeafConfig& cfg) noexcept
-        : ct(cfg.traversal_cost), ci(cfg.intersection_cost), max_leaf(std::max<std::uint32_t>(1, cfg.max_leaf_size)) {}
+        : ct(float(cfg.cost.ct)), ci(float(cfg.cost.ci)), max_leaf(std::max<std::uint32_t>(1, cfg.max_leaf_size)) {}
 
     /// Facts of a single reference with box `b`.
     void leaf(const AABB<T>& b, RawNodeInfo<T>& f) const noexcept {
@@ -323,7 +334,7 @@ Bvh<NodeT, Prim> emit_from_info(const BinaryTree& tree, const References<T>& ref
     bvh.nodes.resize(em.size_of(root));
     bvh.prim_ids.resize(n_refs);
 
-    // Split the top of the tree into independent subtrees, then emit those in parallel.
+    // Step 1: write the top of the tree serially until the rest is independent subtrees.
     using Item = typename detail::Emitter<NodeT, T>::Item;
     std::vector<Item> top, items{{root, {0, 1, 0, 0}}};
     const std::uint32_t grain = std::max<std::uint32_t>(1024, em.size_of(root) / std::uint32_t(64 * ex.concurrency()));
@@ -339,12 +350,14 @@ Bvh<NodeT, Prim> emit_from_info(const BinaryTree& tree, const References<T>& ref
         items.push_back(l);
         items.push_back(r);
     }
+    // Step 2: emit those subtrees in parallel.
     std::vector<std::uint32_t> depths(top.size());
     ex.for_tasks(top.size(), [&](std::size_t k) { depths[k] = em.emit_subtree(top[k]); });
     for (std::uint32_t d : depths) deepest = std::max(deepest, d);
     bvh.depth = deepest;
     if (em.deduplicated.load()) detail::compact_references(bvh);
 
+    // Step 3: the leaf-order copy of the triangles (prim::copied).
     if constexpr (Bvh<NodeT, Prim>::precomputed) {
         bvh.leaf_triangles.resize(bvh.prim_ids.size());
         ex.for_each(0, bvh.prim_ids.size(), [&](std::size_t s) { bvh.leaf_triangles[s] = tris[bvh.prim_ids[s]]; });
@@ -357,7 +370,7 @@ Bvh<NodeT, Prim> emit_from_info(const BinaryTree& tree, const References<T>& ref
 } // namespace detail
 
 /// Turns a raw tree over `refs` into the final layout (see the file comment).
-/// For prim::precomputed the leaf triangles are copied from `tris`. O(n) work, parallel.
+/// For prim::copied the leaf triangles are copied from `tris`. O(n) work, parallel.
 template <class NodeT, class Prim, class T, class Exec>
 Bvh<NodeT, Prim> emit_bvh(const BinaryTree& tree, const References<T>& refs, std::span<const Triangle<T>> tris,
                           const LeafConfig& cfg, const Exec& ex) {
