@@ -85,7 +85,7 @@ std::string wide_problems(const Bvh<NodeT, Prim>& bvh, const wide_bvh_of<Bvh<Nod
             ++used;
             const AABB<S> box = n.bounds(k);
             if (n.is_leaf(k)) {
-                leaf_term += detail::box_area(box.min, box.max) * double(n.count[k]);
+                leaf_term += detail::area(box) * double(n.count[k]);
                 for (std::size_t s = n.child[k]; s < std::size_t(n.child[k]) + n.count[k]; ++s) {
                     if (s >= slot_seen.size() || slot_seen[s]++) {
                         fail("leaf slot " + std::to_string(s) + " out of range or referenced twice");
@@ -118,7 +118,7 @@ std::string wide_problems(const Bvh<NodeT, Prim>& bvh, const wide_bvh_of<Bvh<Nod
     // SAH: the same leaf term as the binary tree; a smaller (subset) inner term.
     double bin_leaf = 0;
     for (const auto& n : bvh.nodes)
-        if (n.is_leaf()) bin_leaf += detail::box_area(n.min, n.max) * double(n.count);
+        if (n.is_leaf()) bin_leaf += detail::area(n.bounds()) * double(n.count);
     if (!(std::abs(leaf_term - bin_leaf) <= 1e-9 * bin_leaf)) fail("leaf SAH term differs from the binary tree's");
     const double ws = sah_cost(w, {.ct = 3, .ci = 2}), bs = sah_cost(bvh, {.ct = 3, .ci = 2});
     // (a single-leaf binary tree has no inner node; its wide tree has one)
