@@ -18,7 +18,7 @@
 #include <dynbvh/lbvh.hpp>
 #include <dynbvh/ploc.hpp>
 #include <dynbvh/sah.hpp>
-#include <dynbvh/scenes/builtin.hpp>
+#include <scenes/builtin.hpp>
 
 #include "embree_bvh.hpp"
 

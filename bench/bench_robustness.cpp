@@ -25,7 +25,7 @@
 #include <dynbvh/intersect.hpp>
 #include <dynbvh/io/ply.hpp>
 #include <dynbvh/ploc.hpp>
-#include <dynbvh/scenes/builtin.hpp>
+#include <scenes/builtin.hpp>
 #include <dynbvh/traverse.hpp>
 
 namespace {

@@ -31,12 +31,12 @@
 #include <dynbvh/lbvh.hpp>
 #include <dynbvh/ploc.hpp>
 #include <dynbvh/sah.hpp>
-#include <dynbvh/scenes/builtin.hpp>
+#include <scenes/builtin.hpp>
 #include <dynbvh/traverse.hpp>
 #include <dynbvh/wide.hpp>
 
 #include "embree_bvh.hpp"
-#include "study/camera.hpp"
+#include "camera.hpp"   // the study's RayGen (dynbvh_study)
 
 namespace {
 

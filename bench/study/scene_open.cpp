@@ -7,7 +7,8 @@
 
 #include <dynbvh/io/bart.hpp>
 #include <dynbvh/io/frames.hpp>
-#include <dynbvh/scenes/builtin.hpp>
+#include <render/material.hpp>
+#include <scenes/builtin.hpp>
 
 #include "json.hpp"
 
@@ -150,8 +151,8 @@ std::string scene_info_json(OpenedScene& s, std::size_t max_frames) {
     j.kv("lights", info.lights.size());
     std::size_t reflective = 0, refractive = 0;
     for (const auto& m : info.materials) {
-        reflective += m.reflects();
-        refractive += m.refracts();
+        reflective += render::reflects(m);
+        refractive += render::refracts(m);
     }
     j.kv("reflective_materials", reflective);
     j.kv("refractive_materials", refractive);

@@ -156,6 +156,28 @@ struct omp {
 };
 #endif
 
+// A backend that is not compiled in still names a type, so that using it stops at a static_assert
+// that says what to link, instead of "'omp' is not a member of 'dynbvh::exec'".
+namespace detail {
+template <class> inline constexpr bool backend_missing = false;
+} // namespace detail
+#if !defined(_OPENMP)
+struct omp {
+    template <class Backend = void> omp(int = 0) {
+        static_assert(detail::backend_missing<Backend>,
+                      "dynbvh::exec::omp needs OpenMP: link dynbvh::omp (or compile with -fopenmp)");
+    }
+};
+#endif
+#if !defined(DYNBVH_WITH_TBB)
+struct tbb {
+    template <class Backend = void> tbb(int = 0) {
+        static_assert(detail::backend_missing<Backend>,
+                      "dynbvh::exec::tbb needs oneTBB: link dynbvh::tbb (or define DYNBVH_WITH_TBB and link TBB::tbb)");
+    }
+};
+#endif
+
 #if defined(DYNBVH_WITH_TBB)
 /// oneTBB backend. `threads == 0` uses TBB's default arena; otherwise a private arena of that many threads.
 struct tbb {
