@@ -704,7 +704,7 @@ Hit<S> wide_traverse(const WideBvh<S, I, P, W>& bvh, std::span<const Triangle<S>
 template <class Policy = trace::robust, class S, class I, class P, int W>
 Hit<S> intersect(const WideBvh<S, I, P, W>& bvh, std::type_identity_t<std::span<const Triangle<S>>> tris,
                  const std::type_identity_t<Ray<S>>& ray) {
-    detail::check_triangles(bvh, tris.size(), "intersect");
+    detail::check_triangles(bvh, tris.size(), "intersect", !WideBvh<S, I, P, W>::precomputed);
     return detail::wide_traverse<Policy, false>(bvh, tris, ray);
 }
 
@@ -712,7 +712,7 @@ Hit<S> intersect(const WideBvh<S, I, P, W>& bvh, std::type_identity_t<std::span<
 template <class Policy = trace::robust, class S, class I, class P, int W>
 bool occluded(const WideBvh<S, I, P, W>& bvh, std::type_identity_t<std::span<const Triangle<S>>> tris,
               const std::type_identity_t<Ray<S>>& ray) {
-    detail::check_triangles(bvh, tris.size(), "occluded");
+    detail::check_triangles(bvh, tris.size(), "occluded", !WideBvh<S, I, P, W>::precomputed);
     return static_cast<bool>(detail::wide_traverse<Policy, true>(bvh, tris, ray));
 }
 
