@@ -2,6 +2,7 @@
 // per-face materials, fan triangulation, and malformed files.
 #include <doctest/doctest.h>
 
+#include <dynbvh/io/frames.hpp>
 #include <dynbvh/io/obj.hpp>
 
 #include <array>
@@ -291,4 +292,19 @@ TEST_CASE("an OBJ with neither vertices nor faces, and a directory, are errors n
     CHECK(mentions(obj_error(dir.path.string()), "directory"));
     std::filesystem::create_directories(dir.path / "d.obj");
     CHECK(mentions(obj_error((dir.path / "d.obj").string()), "directory"));
+    // read_mesh and the single-file scene say so too (not "unknown mesh format ''"), with or without
+    // a mesh extension on the directory's name.
+    for (const auto& p : {dir.path.string(), (dir.path / "d.obj").string(), dir.path.string() + "/"}) {
+        CAPTURE(p);
+        for (int which = 0; which < 2; ++which) {
+            try {
+                if (which == 0) (void)read_mesh(p);
+                else (void)open_mesh_scene(p);
+                FAIL("a directory was read as a mesh");
+            } catch (const LoadError& e) {
+                CHECK(e.file() == p);
+                CHECK(mentions(e, "is a directory"));
+            }
+        }
+    }
 }
