@@ -115,11 +115,15 @@ inline Text normalise(std::span<const char> bytes) {
     Text t;
     if (bytes.size() >= 3 && std::memcmp(bytes.data(), "\xEF\xBB\xBF", 3) == 0) bytes = bytes.subspan(3);
     t.raw = bytes;
+    if (bytes.empty()) return t;
     // Continuations: a '\\' right before "\n" or "\r\n".
     bool any = false;
-    for (std::size_t i = 0; i + 1 < bytes.size() && !any; ++i)
-        if (bytes[i] == '\\' && (bytes[i + 1] == '\n' || (bytes[i + 1] == '\r' && i + 2 < bytes.size() && bytes[i + 2] == '\n')))
-            any = true;
+    for (const char* p = bytes.data(), *end = p + bytes.size(); !any;) {
+        p = static_cast<const char*>(std::memchr(p, '\\', static_cast<std::size_t>(end - p)));
+        if (!p) break;
+        ++p;
+        any = (p < end && *p == '\n') || (end - p >= 2 && p[0] == '\r' && p[1] == '\n');
+    }
     if (!any) return t;
     t.joined.reserve(bytes.size());
     std::size_t line = 1;
