@@ -24,6 +24,8 @@
 
 #if defined(DYNBVH_WITH_TBB)
 #include <memory>
+#include <mutex>
+#include <optional>
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 #include <tbb/parallel_reduce.h>
@@ -179,7 +181,9 @@ struct tbb {
 #endif
 
 #if defined(DYNBVH_WITH_TBB)
-/// oneTBB backend. `threads == 0` uses TBB's default arena; otherwise a private arena of that many threads.
+/// oneTBB backend. `threads == 0` uses TBB's default arena; otherwise a private arena of that many threads,
+/// created on first use and shared by copies. One object may be used by several threads at once (builders
+/// take it by const&): the arena is created exactly once (std::call_once).
 struct tbb {
     int threads = 0;
 
@@ -231,12 +235,18 @@ struct tbb {
     }
 
 private:
+    /// The arena, created once; the state itself exists from construction on, so concurrent first
+    /// calls never race on the pointer (only on the once_flag, which is made for that).
+    struct Arena {
+        std::once_flag once;
+        std::optional<::tbb::task_arena> arena;
+    };
     template <class F> void run(F&& f) const {
         if (threads <= 0) { f(); return; }
-        if (!arena_) arena_ = std::make_shared<::tbb::task_arena>(threads);
-        arena_->execute(f);
+        std::call_once(state_->once, [&] { state_->arena.emplace(threads); });
+        state_->arena->execute(f);
     }
-    mutable std::shared_ptr<::tbb::task_arena> arena_;
+    std::shared_ptr<Arena> state_ = std::make_shared<Arena>();
 };
 #endif
 

@@ -10,16 +10,19 @@
 #include <span>
 
 #include "bvh.hpp"
+#include "detail/check_triangles.hpp"
 #include "executor.hpp"
 
 namespace dynbvh {
 
-/// Recomputes all boxes of `bvh` from `tris` (same triangle count and indexing as at build time).
+/// Recomputes all boxes of `bvh` from `tris` (same triangle count and indexing as at build time;
+/// a span whose size is not `bvh.primitive_count` throws std::invalid_argument, `bvh` unchanged).
 /// For prim::copied the leaf triangles are updated too. O(nodes + references): leaves in
 /// parallel, inner nodes in one reverse sweep (children always follow their parent in the layout).
 template <class NodeT, class Prim, class Exec = exec::default_executor>
 void refit(Bvh<NodeT, Prim>& bvh, std::span<const Triangle<typename NodeT::scalar_type>> tris, const Exec& ex = {}) {
     using T = typename NodeT::scalar_type;
+    detail::check_triangles(bvh, tris.size(), "refit");
     if (bvh.empty()) return;
     if constexpr (Bvh<NodeT, Prim>::precomputed)
         ex.for_each(0, bvh.prim_ids.size(), [&](std::size_t s) { bvh.leaf_triangles[s] = tris[bvh.prim_ids[s]]; });

@@ -16,6 +16,7 @@
 #include "bvh.hpp"
 #include "cost.hpp"
 #include "detail/polygon.hpp"
+#include "detail/check_triangles.hpp"
 #include "executor.hpp"
 
 namespace dynbvh {
@@ -120,10 +121,12 @@ inline double clipped_triangle_area(const Vec3d& a, const Vec3d& b, const Vec3d&
 /// Cost: for each triangle, a descent from the root into every node whose box overlaps the
 /// triangle's box — O(n log n) for well-separated trees, up to O(n * nodes) for pathological overlap;
 /// parallel over triangles with `ex`. Returns 0 for an empty tree or a scene of zero area.
+/// `tris` must be the array the tree was built over (else std::invalid_argument).
 template <class NodeT, class Prim, class Exec = exec::default_executor>
 double epo(const Bvh<NodeT, Prim>& bvh, std::span<const Triangle<typename NodeT::scalar_type>> tris,
            const SahCost& cfg = {}, const Exec& ex = {}) {
     using Index = typename NodeT::index_type;
+    detail::check_triangles(bvh, tris.size(), "epo");
     const auto& nodes = bvh.nodes;
     if (nodes.empty() || tris.empty()) return 0.0;
 

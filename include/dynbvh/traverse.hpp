@@ -32,6 +32,7 @@
 #include <vector>
 
 #include "bvh.hpp"
+#include "detail/check_triangles.hpp"
 #include "intersect.hpp"
 
 namespace dynbvh {
@@ -56,17 +57,6 @@ struct StackEntry {
     Index node;
     T tentry;  ///< entry distance of the node's box, to skip it once a closer hit is known
 };
-
-/// Throws when `given` triangles cannot be the array a tree (binary or wide) indexing the user's
-/// triangles was built over.
-template <class Tree>
-void check_triangles(const Tree& bvh, std::size_t given, const char* fn) {
-    if constexpr (!Tree::precomputed) {
-        if (given < bvh.primitive_count)
-            throw std::invalid_argument(std::string("dynbvh::") + fn + ": the triangle span has " + std::to_string(given) +
-                                        " triangles but the BVH was built over " + std::to_string(bvh.primitive_count));
-    }
-}
 
 /// Tests the triangles of leaf slots [first, end) (slot i is triangle ids[i], or leaf_tris[i] for
 /// prim::copied trees). Each hit narrows tmax and tbox = tmax * t_scale (the box tests' units) and is
@@ -216,13 +206,13 @@ Hit<typename NodeT::scalar_type> traverse(const Bvh<NodeT, Prim>& bvh,
 /// Closest hit of `ray` in `bvh` with t in [ray.tmin, ray.tmax]: t, barycentrics (u, v) and the user's
 /// triangle index (`Hit::prim`, never a leaf slot or fragment); no hit when `prim == invalid_prim`
 /// (`if (hit)`). `tris` is the array the BVH was built over (unused for prim::copied; for
-/// prim::indexed a span shorter than `bvh.primitive_count` throws std::invalid_argument).
+/// prim::indexed a span whose size is not `bvh.primitive_count` throws std::invalid_argument).
 /// Cost: O(visited nodes); no allocation unless `bvh.depth > max_depth`.
 template <class Policy = trace::robust, class NodeT, class Prim>
 Hit<typename NodeT::scalar_type> intersect(const Bvh<NodeT, Prim>& bvh,
                                            std::span<const Triangle<typename NodeT::scalar_type>> tris,
                                            const Ray<typename NodeT::scalar_type>& ray) {
-    detail::check_triangles(bvh, tris.size(), "intersect");
+    detail::check_triangles(bvh, tris.size(), "intersect", !Bvh<NodeT, Prim>::precomputed);
     return detail::traverse<Policy, false>(bvh, tris, ray);
 }
 
@@ -230,7 +220,7 @@ Hit<typename NodeT::scalar_type> intersect(const Bvh<NodeT, Prim>& bvh,
 template <class Policy = trace::robust, class NodeT, class Prim>
 bool occluded(const Bvh<NodeT, Prim>& bvh, std::span<const Triangle<typename NodeT::scalar_type>> tris,
               const Ray<typename NodeT::scalar_type>& ray) {
-    detail::check_triangles(bvh, tris.size(), "occluded");
+    detail::check_triangles(bvh, tris.size(), "occluded", !Bvh<NodeT, Prim>::precomputed);
     return static_cast<bool>(detail::traverse<Policy, true>(bvh, tris, ray));
 }
 

@@ -294,7 +294,7 @@ Hit<S> wide_traverse(const WideBvh<WN, P>& bvh, std::span<const Triangle<S>> tri
 template <class Policy = trace::robust, class WN, class P, class S = typename WN::scalar_type>
 Hit<S> intersect(const WideBvh<WN, P>& bvh, std::type_identity_t<std::span<const Triangle<S>>> tris,
                  const std::type_identity_t<Ray<S>>& ray) {
-    detail::check_triangles(bvh, tris.size(), "intersect");
+    detail::check_triangles(bvh, tris.size(), "intersect", !WideBvh<WN, P>::precomputed);
     return detail::wide_traverse<Policy, false>(bvh, tris, ray);
 }
 
@@ -302,7 +302,7 @@ Hit<S> intersect(const WideBvh<WN, P>& bvh, std::type_identity_t<std::span<const
 template <class Policy = trace::robust, class WN, class P, class S = typename WN::scalar_type>
 bool occluded(const WideBvh<WN, P>& bvh, std::type_identity_t<std::span<const Triangle<S>>> tris,
               const std::type_identity_t<Ray<S>>& ray) {
-    detail::check_triangles(bvh, tris.size(), "occluded");
+    detail::check_triangles(bvh, tris.size(), "occluded", !WideBvh<WN, P>::precomputed);
     return static_cast<bool>(detail::wide_traverse<Policy, true>(bvh, tris, ray));
 }
 

@@ -17,6 +17,7 @@
 #include <vector>
 
 #include "bvh.hpp"
+#include "detail/check_triangles.hpp"
 
 namespace dynbvh {
 
@@ -56,7 +57,7 @@ struct ValidationReport {
 };
 
 /// Checks, reporting every failure:
-///  - bookkeeping: `primitive_count == tris.size()`, `excluded` == number of non-finite triangles;
+///  - bookkeeping: `primitive_count == tris.size()` (the message refit/intersect throw), `excluded` == number of non-finite triangles;
 ///    an empty tree only when no triangle is finite (and then no references);
 ///  - topology: root at 0; every inner node's children `index`, `index + 1` in range; every node reached
 ///    exactly once from the root (no sharing, no cycles, no unreachable nodes); every leaf's range
@@ -92,9 +93,7 @@ ValidationReport validate(const Bvh<NodeT, Prim>& bvh, std::span<const Triangle<
     const std::size_t nt = tris.size();
     std::size_t non_finite = 0;
     for (const auto& t : tris) non_finite += t.is_finite() ? 0 : 1;
-    if (bvh.primitive_count != nt)
-        fail("primitive_count is " + std::to_string(bvh.primitive_count) + " but " + std::to_string(nt) +
-             " triangles were given");
+    if (std::string msg = detail::triangle_mismatch(bvh, nt, "validate"); !msg.empty()) fail(msg);  // reported, not thrown
     if (bvh.excluded != non_finite)
         fail("excluded is " + std::to_string(bvh.excluded) + " but " + std::to_string(non_finite) +
              " triangles have a NaN or infinite vertex");
