@@ -52,4 +52,31 @@ inline std::optional<int> parse(CLI::App& app, int argc, const char* const* argv
     return std::nullopt;
 }
 
+/// For Google Benchmark executables: our options through CLI11, Google Benchmark's own flags
+/// (--benchmark_*=V, --v=N) left in argv for benchmark::Initialize. Returns nullopt to go on (argc/argv
+/// then hold the program name and the benchmark flags), else the exit status as parse() does;
+/// --help lists ours and names the benchmark flags.
+inline std::optional<int> parse_with_benchmark_flags(CLI::App& app, int& argc, char** argv) {
+    app.allow_extras();
+    app.footer("Google Benchmark's own flags pass through, e.g. --benchmark_filter=REGEX, --benchmark_min_time=SECONDS,\n"
+               "--benchmark_repetitions=N, --benchmark_format=console|json|csv, --benchmark_out=FILE, --benchmark_list_tests.");
+    if (const auto rc = parse(app, argc, argv)) return rc;
+    int n = 1;
+    for (const std::string& a : app.remaining()) {
+        if (a.rfind("--benchmark_", 0) != 0 && a.rfind("--v=", 0) != 0) {
+            std::fprintf(stderr, "%s: unknown option '%s' (see --help)\n", app.get_name().c_str(), a.c_str());
+            return 2;
+        }
+        // Keep benchmark's flags: find each in argv (CLI11 hands copies back, in order).
+        for (int i = n; i < argc; ++i)
+            if (a == argv[i]) {
+                std::swap(argv[n], argv[i]);
+                ++n;
+                break;
+            }
+    }
+    argc = n;
+    return std::nullopt;
+}
+
 } // namespace dynbvh::cli

@@ -141,6 +141,11 @@ TEST_CASE("study: tiny cloth-ball run has every group, consistent FPS and non-em
     CHECK(report.find("Table 5.2") != std::string::npos);
     CHECK(report.find("fig_build_vs_triangles.svg") != std::string::npos);
     CHECK(std::filesystem::file_size(out / "fig_build_vs_triangles.svg") > 200);
+    // The crossover plot: frame time relative to the fastest builder, one line per builder.
+    const std::string cross = read_all(out / "fig_crossover_cloth-ball.svg");
+    CHECK(cross.find("frame time / lowest at that ray count") != std::string::npos);
+    CHECK(cross.find(">lbvh</text>") != std::string::npos);
+    CHECK(cross.find(">ploc</text>") != std::string::npos);
 }
 
 TEST_CASE("study: SAH of a 2-triangle scene is exact, and --info describes it") {
