@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 /// @file binned_sah.hpp
 /// Top-down binned SAH builder: Wald 2007, "On fast Construction of SAH-based Bounding Volume
 /// Hierarchies" (IEEE RT). Every node bins its references' centres into `bins` equal slots per axis

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 /// @file bvh.hpp
 /// The one BVH type every builder returns, and the primitive policies.
 /// Traversal, SAH, refit, validation and the benchmark only ever see `Bvh`.

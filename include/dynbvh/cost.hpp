@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 /// @file cost.hpp
 /// The surface area heuristic's cost model, one for every decision and metric: the leaf collapse of
 /// every builder (LeafConfig), `sah_cost` and `epo` (sah.hpp) take the same `SahCost`.

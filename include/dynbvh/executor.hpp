@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 /// @file executor.hpp
 /// Threading backends as one policy type passed to every builder: `exec::serial`,
 /// `exec::omp` (OpenMP; compile with -fopenmp, or link dynbvh::omp) and `exec::tbb`

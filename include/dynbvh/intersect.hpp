@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 /// @file intersect.hpp
 /// Ray-box and ray-triangle tests as compile-time policies.
 ///

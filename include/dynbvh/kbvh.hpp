@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 /// @file kbvh.hpp
 /// KBVH: presplitting (presplit.hpp, Karras & Aila 2013) followed by a builder over the fragments,
 /// PLOC by default. Large, badly fitting triangles become several tightly boxed references, which

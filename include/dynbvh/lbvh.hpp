@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 /// @file lbvh.hpp
 /// LBVH: the linear BVH of Lauterbach et al. 2009 as a binary radix tree over the sorted Morton
 /// codes (Karras 2012, "Maximizing Parallelism in the Construction of BVHs, Octrees, and k-d Trees"),

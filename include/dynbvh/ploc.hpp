@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 /// @file ploc.hpp
 /// PLOC: Parallel Locally-Ordered Clustering (Meister & Bittner 2018, "Parallel Locally-Ordered
 /// Clustering for Bounding Volume Hierarchy Construction", IEEE TVCG 24(3)).

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 /// @file presplit.hpp
 /// Triangle presplitting: Karras & Aila 2013, "Fast Parallel Construction of High-Quality
 /// Bounding Volume Hierarchies" (HPG), section 5. Before a BVH is built, triangles whose boxes fit

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 /// @file refit.hpp
 /// Bottom-up refit: keeps a tree's topology and recomputes every box from the
 /// triangles' current positions — the cheap alternative to a rebuild when a frame's

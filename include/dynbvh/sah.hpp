@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 /// @file sah.hpp
 /// Tree quality metrics, for comparing builders on the same scene:
 ///  - `sah_cost`: the surface area heuristic cost of a finished tree (the study's definition),

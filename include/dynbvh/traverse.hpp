@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 /// @file traverse.hpp
 /// Closest-hit and any-hit queries of one ray against any `Bvh`, with the box and triangle tests
 /// chosen at compile time:

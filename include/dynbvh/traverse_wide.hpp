@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 /// @file traverse_wide.hpp
 /// Closest-hit and any-hit queries of one ray against a `WideBvh` (wide.hpp), with the same policies,
 /// contract and answers as the binary traversal (traverse.hpp), whose leaf test, pop-and-skip step and

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 /// @file validate.hpp
 /// Structural check of a finished `Bvh` against the triangles it was built over. Every builder test
 /// runs it; users can run it on trees they build or modify themselves. The report says in words what

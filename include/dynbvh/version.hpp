@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 /// @file version.hpp
 /// dynbvh's version (semantic versioning); CMake's configure step fails when these differ from
 /// project(VERSION) in CMakeLists.txt.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 /// @file wide.hpp
 /// A 4- or 8-wide BVH converted from any binary `Bvh`. Including this header is enough to trace it
 /// (traverse_wide.hpp: intersect / occluded, the same answers as on the binary tree).

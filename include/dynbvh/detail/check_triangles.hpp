@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 /// @file detail/check_triangles.hpp
 /// The one check every public function taking a tree (binary or wide) and the user's triangles
 /// makes before touching them: the span must be the array the tree was built over, i.e. hold

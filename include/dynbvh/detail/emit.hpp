@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 /// @file detail/emit.hpp
 /// The step every builder ends with: a raw binary tree whose leaves are single
 /// references becomes the final `Bvh` layout. In one parallel bottom-up pass it

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 /// @file detail/morton.hpp
 /// Morton (Z-order) codes of reference centres, shared by LBVH, PLOC and presplitting.
 /// Centres are quantised on a 2^k grid per axis over the centroid bounds (k = 10 for

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 /// @file detail/polygon.hpp
 /// The one polygon clipper: a convex polygon split by an axis-aligned plane. Presplitting (presplit.hpp)
 /// cuts triangle fragments with it; the end-point overlap metric (sah.hpp) clips triangles to boxes.

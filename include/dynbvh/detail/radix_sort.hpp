@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 /// @file detail/radix_sort.hpp
 /// Parallel stable LSD radix sort of unsigned keys with a payload, shared by every
 /// Morton-ordered builder. Up to 11-bit digits; each pass builds per-task histograms, scans

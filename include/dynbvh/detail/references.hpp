@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 /// @file detail/references.hpp
 /// The builders' common input: one reference per primitive (or per presplit fragment)
 /// with its box and the triangle it stands for, plus the scene and centroid bounds.

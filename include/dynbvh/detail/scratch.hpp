@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 /// @file detail/scratch.hpp
 /// Scratch memory for the builders' temporary arrays. A dynamic scene rebuilds every
 /// frame with the same array sizes; fresh allocations of that size come from the kernel

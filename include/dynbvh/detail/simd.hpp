@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 /// @file detail/simd.hpp
 /// Platform macros and the SIMD lane wrappers the traversal uses (internal).
 ///  - DYNBVH_ALWAYS_INLINE / DYNBVH_NOINLINE: inlining control for the per-box and per-triangle tests.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 /// @file io/frames.hpp
 /// Animated scenes made of one PLY or OBJ file per frame, and single meshes as 1-frame scenes.
 ///

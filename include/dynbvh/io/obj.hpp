@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 /// @file io/obj.hpp
 /// Wavefront OBJ reader on tinyobjloader (Debian's libtinyobjloader-dev; link
 /// tinyobjloader::tinyobjloader). Positions and faces are kept (normals and texture

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 /// @file io/ply.hpp
 /// Stanford PLY reader and writer (Turk 1994 "The PLY polygon file format").
 ///

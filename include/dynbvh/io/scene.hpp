@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 /// @file io/scene.hpp
 /// What the loaders return (PLY/OBJ meshes and frame sequences, BART): per-frame triangles with
 /// material ids, per-object transforms, an animated camera, and the materials and lights MTL and
