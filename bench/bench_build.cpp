@@ -2,13 +2,11 @@
 // same thread count, in one run, so every figure reads as a ratio. Scenes: a ~92k-triangle frame of
 // the built-in cloth-ball and a ~1.6M-triangle frame of large-breaking.
 //
-//   dynbvh-bench-build [--threads=N] [google benchmark flags]   (default: 2 threads, as in CI)
+//   dynbvh-bench-build [--threads N] [google benchmark flags]   (default: 2 threads, as in CI; --threads=N too)
 //
 // Counters: tris (triangles), Mtris/s, SAH (Ct = 3, Ci = 2, dynbvh trees only).
 #include <benchmark/benchmark.h>
 
-#include <cstdlib>
-#include <cstring>
 #include <map>
 #include <memory>
 #include <string>
@@ -18,8 +16,9 @@
 #include <dynbvh/lbvh.hpp>
 #include <dynbvh/ploc.hpp>
 #include <dynbvh/sah.hpp>
-#include <dynbvh/scenes/builtin.hpp>
+#include <scenes/builtin.hpp>
 
+#include "cli.hpp"
 #include "embree_bvh.hpp"
 
 namespace {
@@ -98,13 +97,12 @@ BENCHMARK(BM_embree_refit) DYNBVH_SCENES;
 } // namespace
 
 int main(int argc, char** argv) {
-    for (int i = 1; i < argc; ++i)
-        if (std::strncmp(argv[i], "--threads=", 10) == 0) {
-            g_threads = std::atoi(argv[i] + 10);
-            for (int j = i; j + 1 < argc; ++j) argv[j] = argv[j + 1];
-            --argc;
-            break;
-        }
+    CLI::App app{"dynbvh-bench-build: build time of every dynbvh builder beside Embree 3 (LOW, MEDIUM, refit).", "dynbvh-bench-build"};
+    cli::take_last(app);
+    app.add_option("--threads", g_threads, "threads of every builder and of Embree (default 2, as in CI)")
+        ->type_name("N")
+        ->check(cli::number_in(1, 4096));
+    if (const auto rc = cli::parse_with_benchmark_flags(app, argc, argv)) return *rc;
     benchmark::AddCustomContext("threads", std::to_string(g_threads));
     benchmark::Initialize(&argc, argv);
     if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 1;

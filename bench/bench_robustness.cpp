@@ -4,7 +4,7 @@
 // bare tests (ns per box or triangle test) outside traversal. Ratios from this very run are printed
 // at the end.
 //
-//   dynbvh-bench-robustness [google benchmark flags]
+//   dynbvh-bench-robustness [google benchmark flags]   (--help lists them)
 //
 // Scenes: a mid-animation frame of the built-in cloth-ball (~92k triangles) and the Stanford bunny
 // (DYNBVH_DATA_DIR/meshes/bun_zipper.ply, when present). Trees: PLOC (radius 5), prim::indexed.
@@ -25,8 +25,10 @@
 #include <dynbvh/intersect.hpp>
 #include <dynbvh/io/ply.hpp>
 #include <dynbvh/ploc.hpp>
-#include <dynbvh/scenes/builtin.hpp>
+#include <scenes/builtin.hpp>
 #include <dynbvh/traverse.hpp>
+
+#include "cli.hpp"
 
 namespace {
 
@@ -264,6 +266,9 @@ void register_all() {
 } // namespace
 
 int main(int argc, char** argv) {
+    CLI::App app{"dynbvh-bench-robustness: ns per ray of the robust vs fast box and triangle tests (no options of its own).",
+                 "dynbvh-bench-robustness"};
+    if (const auto rc = cli::parse_with_benchmark_flags(app, argc, argv)) return *rc;
     register_all();
     benchmark::Initialize(&argc, argv);
     if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 1;

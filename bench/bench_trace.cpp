@@ -2,13 +2,14 @@
 // rtcIntersect1 (LOW and MEDIUM build quality), on the same frames, the same primary camera rays and
 // the same thread counts in one run, so every figure reads as a ratio to Embree measured beside it.
 //
-//   dynbvh-bench-trace [--threads=1,2] [--res=854x480] [--reps=5] [--scenes=cloth-ball,n-body,funnel,bunny,dragon]
+//   dynbvh-bench-trace [--threads 1,2] [--res 854x480] [--reps 5] [--leaf 8] [--scenes cloth-ball,n-body,funnel,bunny,dragon]
+//                      [--only METHOD]   (--x=v works too; --help)
 //
 // Scenes: the middle frame of the built-in cloth-ball, n-body and funnel (scene camera), and the
 // Stanford bunny and dragon from DYNBVH_DATA_DIR when present (a camera that frames the mesh).
 // Trees: LBVH, PLOC (r = 5) and binned SAH, prim::indexed, each traced binary (traverse.hpp) and
 // converted to 4-wide and 8-wide ("wide8") nodes (wide.hpp); trace::robust unless the row says "fast";
-// "pre" = prim::precomputed. 8-wide nodes are tested with AVX when compiled with it (-march=native,
+// "pre" = prim::copied. 8-wide nodes are tested with AVX when compiled with it (-march=native,
 // DYNBVH_NATIVE), else in two SSE steps.
 // Rays: one per pixel through the pixel centre, tiles of 16x16 pixels handed to OpenMP threads
 // dynamically (Embree's device gets the same thread count). Each rep traces every method once
@@ -18,8 +19,6 @@
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
-#include <cstdlib>
-#include <cstring>
 #include <functional>
 #include <memory>
 #include <string>
@@ -31,12 +30,13 @@
 #include <dynbvh/lbvh.hpp>
 #include <dynbvh/ploc.hpp>
 #include <dynbvh/sah.hpp>
-#include <dynbvh/scenes/builtin.hpp>
+#include <scenes/builtin.hpp>
 #include <dynbvh/traverse.hpp>
 #include <dynbvh/wide.hpp>
 
+#include "cli.hpp"
 #include "embree_bvh.hpp"
-#include "study/camera.hpp"
+#include "camera.hpp"   // the study's RayGen (dynbvh_study)
 
 namespace {
 
@@ -49,18 +49,6 @@ double median(std::vector<double> v) {
     std::sort(v.begin(), v.end());
     const std::size_t n = v.size();
     return n == 0 ? 0 : (n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]));
-}
-
-std::vector<std::string> split(const std::string& s, char sep) {
-    std::vector<std::string> out;
-    std::size_t b = 0;
-    for (;;) {
-        const std::size_t e = s.find(sep, b);
-        out.push_back(s.substr(b, e == std::string::npos ? std::string::npos : e - b));
-        if (e == std::string::npos) break;
-        b = e + 1;
-    }
-    return out;
 }
 
 struct SceneData {
@@ -116,27 +104,40 @@ int main(int argc, char** argv) {
     std::uint32_t max_leaf = LeafConfig{}.max_leaf_size;   // --leaf=N: most references per leaf of our trees
     std::vector<std::string> scene_names = {"cloth-ball", "n-body", "funnel", "bunny", "dragon"};
     std::string only;   // --only=NAME: time just this method (and Embree LOW/MEDIUM), for profiling
-    for (int i = 1; i < argc; ++i) {
-        const std::string a = argv[i];
-        if (a.rfind("--threads=", 0) == 0) {
-            thread_counts.clear();
-            for (const auto& s : split(a.substr(10), ',')) thread_counts.push_back(std::max(1, std::atoi(s.c_str())));
-            if (thread_counts.size() > 2) thread_counts.resize(2);
-        } else if (a.rfind("--res=", 0) == 0) {
-            if (std::sscanf(a.c_str() + 6, "%dx%d", &width, &height) != 2 || width < 1 || height < 1) {
-                std::fprintf(stderr, "bad --res (want WxH): %s\n", a.c_str());
-                return 2;
-            }
-        } else if (a.rfind("--reps=", 0) == 0) {
-            reps = std::max(1, std::atoi(a.c_str() + 7));
-        } else if (a.rfind("--leaf=", 0) == 0) {
-            max_leaf = std::uint32_t(std::clamp(std::atoi(a.c_str() + 7), 1, 256));
-        } else if (a.rfind("--only=", 0) == 0) {
-            only = a.substr(7);
-        } else if (a.rfind("--scenes=", 0) == 0) {
-            scene_names = split(a.substr(9), ',');
-        } else {
-            std::fprintf(stderr, "usage: %s [--threads=1,2] [--res=854x480] [--reps=5] [--leaf=8] [--scenes=a,b,...] [--only=method]\n", argv[0]);
+    std::string res = "854x480";
+    CLI::App app{"dynbvh-bench-trace: single-ray trace speed of our binary and wide traversals beside Embree's rtcIntersect1.",
+                 "dynbvh-bench-trace"};
+    cli::take_last(app);
+    app.add_option("--threads", thread_counts, "one or two thread counts, comma separated (default 1,2)")
+        ->type_name("N[,N]")
+        ->delimiter(',')
+        ->check(cli::number_in(1, 4096));
+    app.add_option("--res", res, "image size (default 854x480)")->type_name("WxH");
+    app.add_option("--reps", reps, "repetitions; the figure is the median (default 5)")->type_name("N")->check(cli::number_in(1, 10000));
+    app.add_option("--leaf", max_leaf, "most references per leaf of our trees (default 8)")
+        ->type_name("N")
+        ->check(cli::number_in<std::uint32_t>(1, 256));
+    app.add_option("--scenes", scene_names, "cloth-ball, n-body, funnel, bunny, dragon (default all), comma separated")
+        ->type_name("LIST")
+        ->delimiter(',');
+    app.add_option("--only", only, "time just this method (and Embree LOW/MEDIUM), for profiling")->type_name("METHOD");
+    app.footer("Options take their value as --x V or --x=V.");
+    if (const auto rc = cli::parse(app, argc, argv)) return *rc;
+    if (thread_counts.size() > 2) {
+        std::fprintf(stderr, "dynbvh-bench-trace: --threads: at most two thread counts, not %zu (see --help)\n", thread_counts.size());
+        return 2;
+    }
+    {
+        char tail = 0;
+        if (std::sscanf(res.c_str(), "%dx%d%c", &width, &height, &tail) != 2 || width < 1 || height < 1 || width > 16384 || height > 16384) {
+            std::fprintf(stderr, "dynbvh-bench-trace: --res: '%s' is not WIDTHxHEIGHT (1 to 16384 each) (see --help)\n", res.c_str());
+            return 2;
+        }
+    }
+    for (const std::string& n : scene_names) {
+        const auto builtin = scenes::builtin_names();
+        if (n != "bunny" && n != "dragon" && std::find(builtin.begin(), builtin.end(), n) == builtin.end()) {
+            std::fprintf(stderr, "dynbvh-bench-trace: --scenes: unknown scene '%s' (see --help)\n", n.c_str());
             return 2;
         }
     }
@@ -144,9 +145,9 @@ int main(int argc, char** argv) {
     const exec::omp bex{.threads = build_threads};
     std::printf("dynbvh-bench-trace: %dx%d primary rays, %d reps (median), max leaf %u, Embree %s, SIMD %s\n", width,
                 height, reps, max_leaf, RTC_VERSION_STRING,
-#if defined(DYNBVH_WIDE_AVX)
+#if defined(DYNBVH_AVX)
                 "SSE, AVX for 8-wide nodes"
-#elif defined(DYNBVH_WIDE_SSE)
+#elif defined(DYNBVH_SSE)
                 "SSE2"
 #else
                 "none (scalar)"
@@ -165,7 +166,7 @@ int main(int argc, char** argv) {
         auto lb = lbvh::build(tris, {.leaves = leaves}, bex);
         auto pl = ploc::build(tris, {.radius = 5, .leaves = leaves}, bex);
         auto sb = binned_sah::build(tris, {.leaves = leaves}, bex);
-        auto plp = ploc::build<Node<>, prim::precomputed>(tris, {.radius = 5, .leaves = leaves}, bex);
+        auto plp = ploc::build<Node<>, prim::copied>(tris, {.radius = 5, .leaves = leaves}, bex);
         std::vector<double> t_lbvh, t_conv, t_conv_ploc, t_lbvh1, t_conv1, t_conv8;
         for (int r = 0; r < std::max(reps, 5); ++r) {
             auto t0 = Clock::now();
@@ -254,7 +255,7 @@ int main(int argc, char** argv) {
 
         std::printf("\n== %s: %zu triangles, %zu rays, %.1f%% hit; wide!=binary rays (4-wide/8-wide):%s; hit/miss differs from embree-low on %zu rays\n",
                     sname.c_str(), tris.size(), nrays, 100.0 * double(hits) / double(nrays), agree.c_str(), emb_diff);
-        const SahConfig sc3{.ct = 3, .ci = 2};
+        const SahCost sc3{.ct = 3, .ci = 2};
         std::printf("   SAH binary/wide: lbvh %.2f/%.2f  ploc %.2f/%.2f  sah %.2f/%.2f;  wide nodes (depth) lbvh %zu (%u) ploc %zu (%u) sah %zu (%u)\n",
                     sah_cost(lb, sc3), sah_cost(lw, sc3), sah_cost(pl, sc3), sah_cost(pw, sc3), sah_cost(sb, sc3),
                     sah_cost(sw, sc3), lw.nodes.size(), lw.depth, pw.nodes.size(), pw.depth, sw.nodes.size(), sw.depth);

@@ -11,6 +11,7 @@
 #include <stdexcept>
 #include <string>
 
+#include <cli.hpp>
 #include <render/whitted.hpp>
 
 #include "backend.hpp"
@@ -24,31 +25,7 @@ using namespace dynbvh;
 
 namespace {
 
-const char* usage_text =
-    "dynbvh-render: render one frame with shadows, reflection and refraction to PNG.\n\n"
-    "Usage: dynbvh-render [options]\n"
-    "  --scene S        built-in name, .ply/.obj file, frame pattern or directory, BART .aff (default funnel)\n"
-    "  --frame N        frame index (default 0)\n"
-    "  --res WxH        image size (default 640x360)\n"
-    "  --builder B      lbvh | kbvh | ploc | binned-sah | embree-low | ... (default ploc)\n"
-    "  --effects E      auto (default): what the scene calls for; primary: primary rays and ambient/headlight only\n"
-    "  --depth N        most reflection/refraction bounces (default 5)\n"
-    "  --scale S        built-in scenes' triangle-count scale (default 1)\n"
-    "  --threads N      worker threads (default all cores)\n"
-    "  --backend B      tbb | omp | serial\n"
-    "  --out FILE       PNG to write (default render.png)\n";
-
-int parse_int(const std::string& opt, const std::string& v) {
-    std::size_t used = 0;
-    int x = 0;
-    try {
-        x = std::stoi(v, &used);
-    } catch (const std::exception&) {
-        used = 0;
-    }
-    if (used == 0 || used != v.size()) throw std::invalid_argument(opt + ": '" + v + "' is not an integer");
-    return x;
-}
+const char* const description = "dynbvh-render: render one frame with shadows, reflection and refraction to PNG.";
 
 } // namespace
 
@@ -57,33 +34,32 @@ int main(int argc, char** argv) {
     int frame = 0, depth = 5, threads = 0;
     double scale = 1;
     study::Resolution res{640, 360};
+    std::string res_text = "640x360";
+    CLI::App app{description, "dynbvh-render"};
+    cli::take_last(app);
+    app.add_option("--scene", scene_spec, "built-in name, .ply/.obj file, frame pattern or directory, BART .aff (default funnel)")
+        ->type_name("S");
+    app.add_option("--frame", frame, "frame index (default 0)")->type_name("N")->check(cli::number_in(0, 1 << 30));
+    app.add_option("--res", res_text, "image size (default 640x360)")->type_name("WxH");
+    app.add_option("--builder", builder, "lbvh | kbvh | ploc | binned-sah | embree-low | ... (default ploc)")->type_name("B");
+    app.add_option("--effects", effects, "auto (default): what the scene calls for; primary: primary rays and ambient/headlight only")
+        ->check(CLI::IsMember({"auto", "primary"}))
+        ->type_name("E");
+    app.add_option("--depth", depth, "most reflection/refraction bounces (default 5)")->type_name("N")->check(cli::number_in(0, 64));
+    app.add_option("--scale", scale, "built-in scenes' triangle-count scale, 0 < S <= 16 (default 1)")
+        ->type_name("S")
+        ->check(cli::number_in(0.0, 16.0));
+    app.add_option("--threads", threads, "worker threads (default 0: all cores)")->type_name("N")->check(cli::number_in(0, 4096));
+    app.add_option("--backend", backend_name, "tbb | omp | serial")->check(CLI::IsMember({"tbb", "omp", "serial"}))->type_name("B");
+    app.add_option("--out", out, "PNG to write (default render.png)")->type_name("FILE");
+    app.footer("Options take their value as --x V or --x=V.");
+    if (const auto rc = cli::parse(app, argc, argv)) return *rc;
     try {
-        for (int i = 1; i < argc; ++i) {
-            const std::string a = argv[i];
-            auto val = [&]() -> std::string {
-                if (i + 1 >= argc) throw std::invalid_argument(a + " needs a value");
-                return argv[++i];
-            };
-            if (a == "--help" || a == "-h") {
-                std::fputs(usage_text, stdout);
-                return 0;
-            } else if (a == "--scene") scene_spec = val();
-            else if (a == "--frame") frame = parse_int(a, val());
-            else if (a == "--res") res = study::parse_resolution(val());
-            else if (a == "--builder") builder = val();
-            else if (a == "--effects") effects = val();
-            else if (a == "--depth") depth = parse_int(a, val());
-            else if (a == "--scale") scale = std::stod(val());
-            else if (a == "--threads") threads = parse_int(a, val());
-            else if (a == "--backend") backend_name = val();
-            else if (a == "--out") out = val();
-            else throw std::invalid_argument("unknown option '" + a + "' (see --help)");
-        }
-        if (effects != "auto" && effects != "primary") throw std::invalid_argument("--effects must be auto or primary");
-        if (depth < 0 || depth > 64) throw std::invalid_argument("--depth must be between 0 and 64");
-        if (!(scale > 0 && scale <= 16)) throw std::invalid_argument("--scale must be in (0, 16]");
+        res = study::parse_resolution(res_text);
+        if (!(scale > 0)) throw std::invalid_argument("--scale must be in (0, 16]");
+        if (out.empty()) throw std::invalid_argument("--out needs a file name");
     } catch (const std::exception& e) {
-        std::fprintf(stderr, "dynbvh-render: %s\n", e.what());
+        std::fprintf(stderr, "dynbvh-render: %s (see --help)\n", e.what());
         return 2;
     }
     try {

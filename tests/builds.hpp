@@ -16,13 +16,13 @@
 #define DYNBVH_TEST_BUILDS(X, E)                                                                                        \
     X template dynbvh::Bvh<dynbvh::Node<>, dynbvh::prim::indexed> dynbvh::lbvh::build<dynbvh::Node<>, dynbvh::prim::indexed, E>( \
         std::span<const dynbvh::Trianglef>, const dynbvh::lbvh::Config&, const E&);                                      \
-    X template dynbvh::Bvh<dynbvh::Node<>, dynbvh::prim::precomputed>                                                   \
-    dynbvh::lbvh::build<dynbvh::Node<>, dynbvh::prim::precomputed, E>(std::span<const dynbvh::Trianglef>,               \
+    X template dynbvh::Bvh<dynbvh::Node<>, dynbvh::prim::copied>                                                   \
+    dynbvh::lbvh::build<dynbvh::Node<>, dynbvh::prim::copied, E>(std::span<const dynbvh::Trianglef>,               \
                                                                        const dynbvh::lbvh::Config&, const E&);            \
     X template dynbvh::Bvh<dynbvh::Node<>, dynbvh::prim::indexed> dynbvh::ploc::build<dynbvh::Node<>, dynbvh::prim::indexed, E>( \
         std::span<const dynbvh::Trianglef>, const dynbvh::ploc::Config&, const E&);                                      \
-    X template dynbvh::Bvh<dynbvh::Node<>, dynbvh::prim::precomputed>                                                   \
-    dynbvh::ploc::build<dynbvh::Node<>, dynbvh::prim::precomputed, E>(std::span<const dynbvh::Trianglef>,               \
+    X template dynbvh::Bvh<dynbvh::Node<>, dynbvh::prim::copied>                                                   \
+    dynbvh::ploc::build<dynbvh::Node<>, dynbvh::prim::copied, E>(std::span<const dynbvh::Trianglef>,               \
                                                                        const dynbvh::ploc::Config&, const E&);            \
     X template dynbvh::Bvh<dynbvh::Node<>, dynbvh::prim::indexed>                                                       \
     dynbvh::kbvh::build<dynbvh::Node<>, dynbvh::prim::indexed, dynbvh::kbvh::with_ploc, E>(                              \
@@ -60,4 +60,4 @@ using fast_box_watertight = trace::policy<box::fast, tri::watertight>;
         const dynbvh::Bvh<dynbvh::Node<>, P>&, std::span<const dynbvh::Trianglef>, const dynbvh::ValidateConfig&);
 
 DYNBVH_TEST_QUERIES(extern, dynbvh::prim::indexed)
-DYNBVH_TEST_QUERIES(extern, dynbvh::prim::precomputed)
+DYNBVH_TEST_QUERIES(extern, dynbvh::prim::copied)

@@ -5,4 +5,4 @@ DYNBVH_TEST_BUILDS(, dynbvh::exec::serial)
 
 // the executor-independent ones live here too
 DYNBVH_TEST_QUERIES(, dynbvh::prim::indexed)
-DYNBVH_TEST_QUERIES(, dynbvh::prim::precomputed)
+DYNBVH_TEST_QUERIES(, dynbvh::prim::copied)

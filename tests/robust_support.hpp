@@ -274,7 +274,7 @@ inline constexpr std::size_t builder_count = std::size(builder_names);
 template <class Exec, class F>
 void for_each_builder(std::span<const Trianglef> tris, const Exec& ex, F&& f) {
     f(std::size_t(0), lbvh::build(tris, {}, ex), true);
-    f(std::size_t(1), lbvh::build<Node<>, prim::precomputed>(tris, {.morton_bits = 63}, ex), true);
+    f(std::size_t(1), lbvh::build<Node<>, prim::copied>(tris, {.morton_bits = 63}, ex), true);
     f(std::size_t(2), ploc::build(tris, {.radius = 5}, ex), true);
     f(std::size_t(3), kbvh::build(tris, {.split = {.beta = 0.5f}}, ex), false);
     f(std::size_t(4), kbvh::build<Node<>, prim::indexed, kbvh::with_lbvh>(tris, {.split = {.beta = 0.3f}}, ex), false);

@@ -11,7 +11,7 @@
 #include <span>
 #include <vector>
 
-namespace dynbvh::testing {
+namespace dynbvh::test {
 
 template <class NodeT, class Prim>
 void finish_leaf_triangles(Bvh<NodeT, Prim>& bvh, std::span<const Triangle<typename NodeT::scalar_type>> tris) {
@@ -112,4 +112,4 @@ Bvh<NodeT, Prim> caterpillar_build(std::span<const Triangle<typename NodeT::scal
     return bvh;
 }
 
-} // namespace dynbvh::testing
+} // namespace dynbvh::test

@@ -17,7 +17,7 @@
 #include <vector>
 
 #include <dynbvh/bvh.hpp>
-#include <dynbvh/collapse.hpp>
+#include <dynbvh/detail/emit.hpp>
 #include <dynbvh/executor.hpp>
 #include <dynbvh/validate.hpp>
 

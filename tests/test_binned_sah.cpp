@@ -54,7 +54,7 @@ TEST_CASE("binned_sah: random soup, valid topology and final tree") {
 #if defined(DYNBVH_WITH_TBB)
     check_bvh(binned_sah::build(tris, {}, exec::tbb{2}), tris);
 #endif
-    const auto pre = binned_sah::build<Node<>, prim::precomputed>(tris, {}, exec::serial{});
+    const auto pre = binned_sah::build<Node<>, prim::copied>(tris, {}, exec::serial{});
     const auto rep = validate(pre, std::span<const Tri>(tris));
     CHECK_MESSAGE(rep.ok(), rep.summary());
 }

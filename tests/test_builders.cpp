@@ -113,9 +113,9 @@ template <class Exec, class F>
 void for_each_builder(std::span<const Trianglef> tris, const Exec& ex, F&& f) {
     // std::string names so that doctest's CAPTURE prints them.
     f(std::string("lbvh"), lbvh::build(tris, {}, ex), true);
-    f(std::string("lbvh-63"), lbvh::build<Node<>, prim::precomputed>(tris, {.morton_bits = 63}, ex), true);
+    f(std::string("lbvh-63"), lbvh::build<Node<>, prim::copied>(tris, {.morton_bits = 63}, ex), true);
     f(std::string("ploc"), ploc::build(tris, {.radius = 5}, ex), true);
-    f(std::string("ploc-r1-precomputed"), ploc::build<Node<>, prim::precomputed>(tris, {.radius = 1}, ex), true);
+    f(std::string("ploc-r1-precomputed"), ploc::build<Node<>, prim::copied>(tris, {.radius = 1}, ex), true);
     f(std::string("kbvh"), kbvh::build(tris, {}, ex), false);
     f(std::string("kbvh-lbvh"), kbvh::build<Node<>, prim::indexed, kbvh::with_lbvh>(tris, {.split = {.beta = 0.3f}}, ex), false);
     f(std::string("binned-sah"), binned_sah::build(tris, {}, ex), true);

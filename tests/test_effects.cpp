@@ -21,7 +21,7 @@
 #include <dynbvh/executor.hpp>
 #include <dynbvh/lbvh.hpp>
 #include <dynbvh/ploc.hpp>
-#include <dynbvh/scenes/builtin.hpp>
+#include <scenes/builtin.hpp>
 
 using namespace dynbvh;
 using render::RayKind;

@@ -326,7 +326,7 @@ TEST_CASE("ploc: full builds are valid on every executor, node layout and primit
             CHECK_MESSAGE(ra.ok(), ra.summary());
             CHECK(a.primitive_count == tris.size());
             CHECK(a.empty() == tris.empty());
-            const auto b = ploc::build<Node<>, prim::precomputed>(span, {.radius = 16, .morton_bits = 63}, ex);
+            const auto b = ploc::build<Node<>, prim::copied>(span, {.radius = 16, .morton_bits = 63}, ex);
             const auto rb = validate(b, span);
             CHECK_MESSAGE(rb.ok(), rb.summary());
         });

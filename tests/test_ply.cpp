@@ -505,3 +505,81 @@ TEST_CASE("read_ply from a path: missing file and directory are LoadErrors") {
         CHECK(mentions(e, "directory"));
     }
 }
+
+// ---- issue 16.6 and 16.8: a byte-order mark, and a binary body longer than its header --------
+
+TEST_CASE("PLY with a UTF-8 byte-order mark reads as without it, in every encoding") {
+    const Mesh m = random_mesh(50, 80, 11);
+    for (const auto enc : {PlyEncoding::ascii, PlyEncoding::binary_little_endian, PlyEncoding::binary_big_endian}) {
+        const std::string plain = to_ply(m, enc);
+        const Mesh a = parse("\xEF\xBB\xBF" + plain);
+        CHECK(a.vertices == m.vertices);
+        CHECK(a.faces == m.faces);
+    }
+    // Errors keep their line numbers.
+    try {
+        (void)parse("\xEF\xBB\xBFply\nformat ascii 1.0\nbogus\nend_header\n");
+        FAIL("no error");
+    } catch (const LoadError& e) {
+        CHECK(e.where() == "line 3");
+    }
+}
+
+TEST_CASE("binary PLY whose body is longer than its header implies: a warning, or an error without faces") {
+    const Mesh m = random_mesh(40, 60, 12);
+    for (const auto enc : {PlyEncoding::binary_little_endian, PlyEncoding::binary_big_endian}) {
+        const std::string good = to_ply(m, enc);
+        // Any number of extra bytes: the mesh loads, the caller is told where the surplus starts.
+        for (const std::size_t extra : {std::size_t(1), std::size_t(3), std::size_t(8), std::size_t(1000)}) {
+            CAPTURE(extra);
+            const std::string bytes = good + std::string(extra, '\x7f');
+            std::string warnings;
+            const Mesh a = read_ply(std::span<const char>(bytes.data(), bytes.size()), "long.ply", &warnings);
+            CHECK(a.faces == m.faces);
+            CHECK(warnings.find("long.ply: byte " + std::to_string(good.size()) + ": " + std::to_string(extra) + " bytes after the last element") == 0);
+            CHECK_NOTHROW((void)parse(bytes));   // without a warnings string: still loads
+        }
+        std::string warnings;   // a final line break alone is not worth a warning
+        (void)read_ply(std::span<const char>((good + "\n").data(), good.size() + 1), "nl.ply", &warnings);
+        CHECK(warnings.empty());
+        (void)read_ply(std::span<const char>(good.data(), good.size()), "exact.ply", &warnings);
+        CHECK(warnings.empty());
+    }
+    // Doubles written under 'property float': never a silent load.
+    for (const bool big : {false, true}) {
+        Bytes b;
+        b.big = big;
+        b.text(std::string("ply\nformat ") + (big ? "binary_big_endian" : "binary_little_endian") +
+               " 1.0\nelement vertex 4\nproperty float x\nproperty float y\nproperty float z\n"
+               "element face 2\nproperty list uchar int vertex_indices\nend_header\n");
+        for (const double v : {0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 1.0, 1.0, 0.0}) b.put<double>(v);
+        b.put<std::uint8_t>(3).put<std::int32_t>(0).put<std::int32_t>(1).put<std::int32_t>(2);
+        b.put<std::uint8_t>(3).put<std::int32_t>(1).put<std::int32_t>(3).put<std::int32_t>(2);
+        std::string warnings;
+        try {
+            const Mesh a = read_ply(std::span<const char>(b.s.data(), b.s.size()), "doubles.ply", &warnings);
+            CHECK(!a.faces.empty());            // loaded faces: then the caller was warned
+            CHECK(!warnings.empty());
+        } catch (const LoadError& e) {
+            CHECK(e.file() == "doubles.ply");
+        }
+    }
+    // No face survives (all have fewer than 3 indices) and bytes are left: an error at the surplus.
+    Bytes c;
+    c.text("ply\nformat binary_little_endian 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+           "element face 2\nproperty list uchar int vertex_indices\nend_header\n");
+    for (int i = 0; i < 9; ++i) c.put<float>(float(i));
+    c.put<std::uint8_t>(2).put<std::int32_t>(0).put<std::int32_t>(1);
+    c.put<std::uint8_t>(1).put<std::int32_t>(2);
+    const std::size_t end = c.s.size();
+    CHECK(parse(c.s).faces.empty());            // exact length: a mesh of no triangles, as before
+    c.put<std::int32_t>(7);
+    try {
+        (void)parse(c.s, "nofaces.ply");
+        FAIL("no error");
+    } catch (const LoadError& e) {
+        CHECK(e.file() == "nofaces.ply");
+        CHECK(e.where() == "byte " + std::to_string(end));
+        CHECK(mentions(e, "no face was read"));
+    }
+}

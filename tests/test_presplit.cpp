@@ -301,7 +301,7 @@ TEST_CASE("kbvh: valid trees with every builder and executor, one-line use") {
         CHECK(bvh.primitive_count == tris.size());
     };
     check(kbvh::build(tris, {.split = {.beta = 0.05f}}, exec::serial{}));
-    check(kbvh::build<Node<>, prim::precomputed, kbvh::with_lbvh>(tris, {.split = {.beta = 0.2f}}, exec::serial{}));
+    check(kbvh::build<Node<>, prim::copied, kbvh::with_lbvh>(tris, {.split = {.beta = 0.2f}}, exec::serial{}));
     check(kbvh::build(tris, kbvh::Config<kbvh::with_binned_sah>{.split = {.beta = 0.1f}}, exec::serial{}));
 #if defined(_OPENMP)
     check(kbvh::build(tris, {.split = {.beta = 0.05f}}, exec::omp{2}));

@@ -12,7 +12,7 @@
 #include <vector>
 
 using namespace dynbvh;
-using dynbvh::testing::median_build;
+using dynbvh::test::median_build;
 
 namespace {
 
@@ -81,7 +81,7 @@ void for_each_executor(F&& f) {
 // Monte Carlo EPO: uniform points on every triangle; a point of triangle i counts for node n when it
 // lies in n's box and i is not referenced in n's subtree. Independent of the clipping code.
 template <class B>
-double epo_monte_carlo(const B& bvh, const std::vector<Trianglef>& tris, const SahConfig& cfg, int samples,
+double epo_monte_carlo(const B& bvh, const std::vector<Trianglef>& tris, const SahCost& cfg, int samples,
                        std::uint32_t seed) {
     // subtree membership by brute force
     const std::size_t nn = bvh.nodes.size();
@@ -226,7 +226,7 @@ TEST_CASE("EPO agrees with an independent Monte Carlo estimate on a random tree"
         const Vec3f o{c(rng), c(rng), c(rng)};
         t = {o + Vec3f{d(rng), d(rng), d(rng)}, o + Vec3f{d(rng), d(rng), d(rng)}, o + Vec3f{d(rng), d(rng), d(rng)}};
     }
-    const auto bvh = median_build<Node<>, prim::precomputed>(tris, 2);
+    const auto bvh = median_build<Node<>, prim::copied>(tris, 2);
     const double exact = epo(bvh, tris);
     const double mc = epo_monte_carlo(bvh, tris, {}, 3000, 5);
     MESSAGE("EPO " << exact << ", Monte Carlo " << mc);

@@ -3,7 +3,8 @@
 #include <doctest/doctest.h>
 
 #include <dynbvh/io/ply.hpp>
-#include <dynbvh/scenes/builtin.hpp>
+#include <render/material.hpp>
+#include <scenes/builtin.hpp>
 
 #include "sanitized.hpp"
 
@@ -237,7 +238,7 @@ TEST_CASE("scenes: materials, lights and objects as each scene declares") {
         const auto& mats = s->info().materials;
         bool glass_used = false;
         for (std::uint32_t m : f.material)
-            if (mats[m].refracts()) {
+            if (render::refracts(mats[m])) {
                 glass_used = true;
                 CHECK(mats[m].ior == doctest::Approx(1.5));
             }
@@ -256,8 +257,8 @@ TEST_CASE("scenes: materials, lights and objects as each scene declares") {
         for (std::uint32_t t = ball.first_triangle; t < ball.first_triangle + ball.triangle_count; ++t) b.extend(f.triangles[t].bounds());
         CHECK(length(b.center() - Vec3f{ball.transform.m[12], ball.transform.m[13], ball.transform.m[14]}) < 0.05f);
         for (const auto& m : s->info().materials) {
-            CHECK(!m.refracts());
-            CHECK(!m.reflects());   // primary rays only, as in the study
+            CHECK(!render::refracts(m));
+            CHECK(!render::reflects(m));   // primary rays only, as in the study
         }
     }
     {

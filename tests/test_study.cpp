@@ -8,123 +8,18 @@
 #include <sys/wait.h>
 #include <filesystem>
 #include <fstream>
-#include <map>
-#include <memory>
 #include <sstream>
 #include <set>
 #include <string>
-#include <variant>
 #include <vector>
 
 #if defined(DYNBVH_STUDY_EXE)
 
+#include <nlohmann/json.hpp>
+
 namespace {
 
-// ---- a minimal JSON reader (enough for study.json) ----
-struct Json;
-using JsonObject = std::map<std::string, Json>;
-using JsonArray = std::vector<Json>;
-struct Json {
-    std::variant<std::nullptr_t, bool, double, std::string, std::shared_ptr<JsonArray>, std::shared_ptr<JsonObject>> v;
-    bool is_null() const { return std::holds_alternative<std::nullptr_t>(v); }
-    double num() const { return std::get<double>(v); }
-    const std::string& str() const { return std::get<std::string>(v); }
-    const JsonArray& arr() const { return *std::get<std::shared_ptr<JsonArray>>(v); }
-    const JsonObject& obj() const { return *std::get<std::shared_ptr<JsonObject>>(v); }
-    const Json& operator[](const std::string& k) const {
-        const auto& o = obj();
-        const auto it = o.find(k);
-        if (it == o.end()) throw std::runtime_error("JSON: no key " + k);
-        return it->second;
-    }
-};
-
-class JsonParser {
-public:
-    explicit JsonParser(const std::string& s) : s_(s) {}
-    Json parse() {
-        Json j = value();
-        ws();
-        if (i_ != s_.size()) fail("trailing characters");
-        return j;
-    }
-
-private:
-    [[noreturn]] void fail(const std::string& why) { throw std::runtime_error("JSON: " + why + " at byte " + std::to_string(i_)); }
-    void ws() {
-        while (i_ < s_.size() && (s_[i_] == ' ' || s_[i_] == '\n' || s_[i_] == '\t' || s_[i_] == '\r')) ++i_;
-    }
-    bool eat(char c) {
-        ws();
-        if (i_ < s_.size() && s_[i_] == c) {
-            ++i_;
-            return true;
-        }
-        return false;
-    }
-    Json value() {
-        ws();
-        if (i_ >= s_.size()) fail("unexpected end");
-        const char c = s_[i_];
-        if (c == '{') {
-            ++i_;
-            auto o = std::make_shared<JsonObject>();
-            if (!eat('}')) {
-                do {
-                    ws();
-                    const std::string k = string();
-                    if (!eat(':')) fail("expected :");
-                    (*o)[k] = value();
-                } while (eat(','));
-                if (!eat('}')) fail("expected }");
-            }
-            return Json{o};
-        }
-        if (c == '[') {
-            ++i_;
-            auto a = std::make_shared<JsonArray>();
-            if (!eat(']')) {
-                do a->push_back(value());
-                while (eat(','));
-                if (!eat(']')) fail("expected ]");
-            }
-            return Json{a};
-        }
-        if (c == '"') return Json{string()};
-        if (s_.compare(i_, 4, "null") == 0) { i_ += 4; return Json{nullptr}; }
-        if (s_.compare(i_, 4, "true") == 0) { i_ += 4; return Json{true}; }
-        if (s_.compare(i_, 5, "false") == 0) { i_ += 5; return Json{false}; }
-        std::size_t used = 0;
-        const double d = std::stod(s_.substr(i_, 64), &used);
-        if (used == 0) fail("bad number");
-        i_ += used;
-        return Json{d};
-    }
-    std::string string() {
-        if (i_ >= s_.size() || s_[i_] != '"') fail("expected string");
-        ++i_;
-        std::string o;
-        while (i_ < s_.size() && s_[i_] != '"') {
-            if (s_[i_] == '\\') {
-                ++i_;
-                const char e = s_[i_];
-                if (e == 'n') o += '\n';
-                else if (e == 't') o += '\t';
-                else if (e == 'r') o += '\r';
-                else if (e == 'u') { o += '?'; i_ += 4; }
-                else o += e;
-                ++i_;
-            } else {
-                o += s_[i_++];
-            }
-        }
-        if (i_ >= s_.size()) fail("unterminated string");
-        ++i_;
-        return o;
-    }
-    const std::string& s_;
-    std::size_t i_ = 0;
-};
+using Json = nlohmann::json;
 
 std::string read_all(const std::filesystem::path& p) {
     std::ifstream in(p, std::ios::binary);
@@ -154,58 +49,86 @@ TEST_CASE("study: tiny cloth-ball run has every group, consistent FPS and non-em
     INFO(read_all(out / "log.txt"));
     REQUIRE(rc == 0);
     const std::string text = read_all(out / "study.json");
-    const Json j = JsonParser(text).parse();
+    const Json j = Json::parse(text);
 
-    CHECK(j["threads"].num() >= 1);
-    CHECK(!j["machine"]["cpu"].str().empty());
-    CHECK(!j["compiler"].str().empty());
-    CHECK(!j["date"].str().empty());
+    CHECK(j.at("threads").get<double>() >= 1);
+    CHECK(!j.at("machine").at("cpu").get<std::string>().empty());
+    CHECK(!j.at("compiler").get<std::string>().empty());
+    CHECK(!j.at("date").get<std::string>().empty());
+    // What was asked for, as written back.
+    CHECK(j.at("format") == "dynbvh-study 1");
+    CHECK(j.at("threads") == 2);
+    CHECK((j.at("embree").is_null() || j.at("embree").is_string()));
+    const auto& opts = j.at("options");
+    CHECK(opts.at("command_line").get<std::string>().find("--threads 2") != std::string::npos);
+    CHECK(opts.at("resolutions") == Json::array({"64x48", "32x24"}));
+    CHECK(opts.at("frames") == 2);
+    CHECK(opts.at("scale") == 0.02);
+    CHECK(opts.at("reps") == 1);
+    CHECK(opts.at("effects") == "primary");
+    CHECK(j.at("builders") == Json::array({"lbvh", "ploc"}));
+    REQUIRE(j.at("scenes").size() == 1);
+    const auto& scene = j.at("scenes").at(0);
+    CHECK(scene.at("name") == "cloth-ball");
+    CHECK(scene.at("kind") == "builtin");
+    REQUIRE(scene.at("frames_used").size() == 2);
+    CHECK(scene.at("triangles_min").get<double>() > 100);
+    CHECK(j.at("sweep").is_null());
 
-    const auto& results = j["results"].arr();
+    const auto& results = j.at("results");
     REQUIRE(results.size() == 4);   // 1 scene x 2 builders x 2 resolutions
     for (const char* b : {"lbvh", "ploc"})
         for (int w : {64, 32}) {
             int found = 0;
             for (const auto& g : results)
-                if (g["scene"].str() == "cloth-ball" && g["builder"].str() == b && g["width"].num() == w) ++found;
+                if (g.at("scene") == "cloth-ball" && g.at("builder") == b && g.at("width") == w) ++found;
             CHECK_MESSAGE(found == 1, b << " at width " << w);
         }
     std::size_t records = 0;
     for (const auto& g : results) {
-        const auto& frames = g["per_frame"].arr();
+        const auto& frames = g.at("per_frame");
         REQUIRE(frames.size() == 2);
+        CHECK(g.at("frames") == 2);
+        CHECK(g.at("reps") == 1);
+        CHECK(g.at("effects").is_null());
+        for (std::size_t k = 0; k < 2; ++k) {
+            CHECK(frames.at(k).at("frame") == scene.at("frames_used").at(k));
+            CHECK(frames.at(k).at("rep") == 0);
+            CHECK(frames.at(k).at("triangles").get<double>() >= scene.at("triangles_min").get<double>());
+            CHECK(frames.at(k).at("triangles").get<double>() <= scene.at("triangles_max").get<double>());
+        }
         records += frames.size();
         double build = 0, trace = 0, sah = 0;
         for (const auto& f : frames) {
-            CHECK(f["build_ms"].num() >= 0);
-            CHECK(f["trace_ms"].num() > 0);
-            CHECK(f["triangles"].num() > 100);
-            CHECK(f["hits"].num() > 0);
-            CHECK(f["hits"].num() < g["rays_per_frame"].num());
-            build += f["build_ms"].num();
-            trace += f["trace_ms"].num();
-            sah += f["sah"].num();
+            CHECK(f.at("build_ms").get<double>() >= 0);
+            CHECK(f.at("trace_ms").get<double>() > 0);
+            CHECK(f.at("triangles").get<double>() > 100);
+            CHECK(f.at("hits").get<double>() > 0);
+            CHECK(f.at("hits").get<double>() < g.at("rays_per_frame").get<double>());
+            build += f.at("build_ms").get<double>();
+            trace += f.at("trace_ms").get<double>();
+            sah += f.at("sah").get<double>();
         }
-        CHECK(g["rays_per_frame"].num() == g["width"].num() * g["height"].num());
-        CHECK(g["fps"].num() == doctest::Approx(2.0 / ((build + trace) / 1000.0)).epsilon(1e-12));
-        CHECK(g["mean_build_ms"].num() == doctest::Approx(build / 2).epsilon(1e-12));
-        CHECK(g["mean_trace_ms"].num() == doctest::Approx(trace / 2).epsilon(1e-12));
-        CHECK(g["mean_sah"].num() == doctest::Approx(sah / 2).epsilon(1e-12));
-        CHECK(g["mean_memory_bytes"].num() > 0);
+        CHECK(g.at("rays_per_frame").get<double>() == g.at("width").get<double>() * g.at("height").get<double>());
+        CHECK(g.at("fps").get<double>() == doctest::Approx(2.0 / ((build + trace) / 1000.0)).epsilon(1e-12));
+        CHECK(g.at("mean_build_ms").get<double>() == doctest::Approx(build / 2).epsilon(1e-12));
+        CHECK(g.at("mean_trace_ms").get<double>() == doctest::Approx(trace / 2).epsilon(1e-12));
+        CHECK(g.at("mean_sah").get<double>() == doctest::Approx(sah / 2).epsilon(1e-12));
+        CHECK(g.at("mean_memory_bytes").get<double>() > 0);
     }
     // Both builders hit the same number of pixels (exact closest hits through different trees).
     for (const auto& a : results)
         for (const auto& b : results)
-            if (a["width"].num() == b["width"].num())
+            if (a.at("width").get<double>() == b.at("width").get<double>())
                 for (std::size_t k = 0; k < 2; ++k)
-                    CHECK(a["per_frame"].arr()[k]["hits"].num() == b["per_frame"].arr()[k]["hits"].num());
+                    CHECK(a.at("per_frame").at(k).at("hits").get<double>() == b.at("per_frame").at(k).at("hits").get<double>());
 
-    const auto& images = j["images"].arr();
+    const auto& images = j.at("images");
     REQUIRE(images.size() == 2);
     for (const auto& im : images) {
-        CHECK(im["hit_pixels"].num() > 0);
-        CHECK(im["hit_pixels"].num() < im["width"].num() * im["height"].num());
-        const std::string png = read_all(out / im["file"].str());
+        CHECK(im.at("hit_pixels").get<double>() > 0);
+        CHECK(im.at("hit_pixels").get<double>() < im.at("width").get<double>() * im.at("height").get<double>());
+        const std::string png = read_all(out / im.at("file").get<std::string>());
         REQUIRE(png.size() > 8);
         CHECK(png.compare(0, 8, "\x89PNG\r\n\x1a\n") == 0);
     }
@@ -218,6 +141,11 @@ TEST_CASE("study: tiny cloth-ball run has every group, consistent FPS and non-em
     CHECK(report.find("Table 5.2") != std::string::npos);
     CHECK(report.find("fig_build_vs_triangles.svg") != std::string::npos);
     CHECK(std::filesystem::file_size(out / "fig_build_vs_triangles.svg") > 200);
+    // The crossover plot: frame time relative to the fastest builder, one line per builder.
+    const std::string cross = read_all(out / "fig_crossover_cloth-ball.svg");
+    CHECK(cross.find("frame time / lowest at that ray count") != std::string::npos);
+    CHECK(cross.find(">lbvh</text>") != std::string::npos);
+    CHECK(cross.find(">ploc</text>") != std::string::npos);
 }
 
 TEST_CASE("study: SAH of a 2-triangle scene is exact, and --info describes it") {
@@ -239,18 +167,18 @@ TEST_CASE("study: SAH of a 2-triangle scene is exact, and --info describes it") 
                              out / "log.txt");
     INFO(read_all(out / "log.txt"));
     REQUIRE(rc == 0);
-    const Json j = JsonParser(read_all(out / "study.json")).parse();
-    const auto& results = j["results"].arr();
+    const Json j = Json::parse(read_all(out / "study.json"));
+    const auto& results = j.at("results");
     REQUIRE(results.size() == 5);
     std::set<double> default_bytes;
     for (const auto& g : results) {
-        INFO(g["builder"].str());
-        CHECK(g["per_frame"].arr()[0]["sah"].num() == doctest::Approx(expected).epsilon(1e-12));
-        CHECK(g["per_frame"].arr()[0]["triangles"].num() == 2);
+        INFO(g.at("builder").get<std::string>());
+        CHECK(g.at("per_frame").at(0).at("sah").get<double>() == doctest::Approx(expected).epsilon(1e-12));
+        CHECK(g.at("per_frame").at(0).at("triangles").get<double>() == 2);
         // the traced tree: 3 binary nodes (32 bytes each), one 4-wide node (128 bytes) or one 8-wide node
         // (256 bytes), plus 2 references; lbvh and binned-sah trace the default width (4, or 8 with AVX)
-        const std::string name = g["builder"].str();
-        const double bytes = g["per_frame"].arr()[0]["memory_bytes"].num() - 2 * 4;
+        const std::string name = g.at("builder").get<std::string>();
+        const double bytes = g.at("per_frame").at(0).at("memory_bytes").get<double>() - 2 * 4;
         if (name.find("wide=0") != std::string::npos) CHECK(bytes == 3 * 32);
         else if (name.starts_with("ploc")) CHECK(bytes == 128);
         else if (name.starts_with("kbvh")) CHECK(bytes == 256);
@@ -261,14 +189,14 @@ TEST_CASE("study: SAH of a 2-triangle scene is exact, and --info describes it") 
 
     const int rc2 = run_study("--info \"" + (out / "two.ply").string() + "\"", out / "info.json");
     REQUIRE(rc2 == 0);
-    const Json info = JsonParser(read_all(out / "info.json")).parse();
-    CHECK(info["triangles"].num() == 2);
-    CHECK(info["frames"].num() == 1);
-    CHECK(info["format"].str() == "ply");
-    CHECK(info["bounds"]["min"].arr()[0].num() == 0);
-    CHECK(info["bounds"]["max"].arr()[0].num() == 101);
-    CHECK(info["bounds"]["max"].arr()[1].num() == 1);
-    CHECK(info["topology_changes"].v == Json{false}.v);
+    const Json info = Json::parse(read_all(out / "info.json"));
+    CHECK(info.at("triangles").get<double>() == 2);
+    CHECK(info.at("frames").get<double>() == 1);
+    CHECK(info.at("format").get<std::string>() == "ply");
+    CHECK(info.at("bounds").at("min").at(0).get<double>() == 0);
+    CHECK(info.at("bounds").at("max").at(0).get<double>() == 101);
+    CHECK(info.at("bounds").at("max").at(1).get<double>() == 1);
+    CHECK(info.at("topology_changes") == false);
 }
 
 TEST_CASE("study: bad input fails with a message naming it") {
@@ -286,6 +214,46 @@ TEST_CASE("study: bad input fails with a message naming it") {
     }
     CHECK(run_study("--info \"" + (out / "broken.ply").string() + "\"", out / "log4.txt") != 0);
     CHECK(read_all(out / "log4.txt").find("broken.ply") != std::string::npos);
+}
+
+TEST_CASE("study: one option syntax (--x v and --x=v), --help exits 0, bad values exit 2 naming them") {
+    const auto out = tmp / "cli";
+    std::filesystem::create_directories(out);
+    {
+        std::ofstream ply(out / "one.ply");
+        ply << "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+               "element face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n";
+    }
+    const std::string info = "--info \"" + (out / "one.ply").string() + "\"";
+    // --help: usage on stdout, every option listed, status 0.
+    CHECK(run_study("--help", out / "help.txt") == 0);
+    const std::string help = read_all(out / "help.txt");
+    for (const char* opt : {"--scenes", "--builders", "--res", "--threads", "--backend", "--sweep-only", "--effects-depth", "--info"})
+        CHECK_MESSAGE(help.find(opt) != std::string::npos, opt);
+    CHECK(run_study("-h", out / "help2.txt") == 0);
+    // Both syntaxes are accepted and give the value: --frames caps the frames inspected by --info.
+    for (const char* frames : {"--frames 1", "--frames=1"}) {
+        INFO(frames);
+        REQUIRE(run_study(info + " " + frames + " --threads 2 --seed=7", out / "info.json") == 0);
+        CHECK(Json::parse(read_all(out / "info.json")).at("frames_inspected") == 1);
+    }
+    CHECK(run_study(info + " --threads=2 --scale 0.5", out / "info.json") == 0);
+    // Bad values and unknown options: status 2 and a message naming the option or the value.
+    const std::vector<std::pair<std::string, std::string>> bad = {
+        {"--threads=abc", "abc"},       {"--threads abc", "abc"},         {"--threads -1", "--threads"},
+        {"--threads 5000", "--threads"}, {"--threads", "--threads"},      {"--frames -1", "--frames"},
+        {"--frames 0", "--frames"},      {"--reps 1.5", "--reps"},        {"--scale nan", "--scale"},
+        {"--scale 0", "--scale"},        {"--scale=17", "--scale"},       {"--seed=-3", "--seed"},
+        {"--backend=gpu", "gpu"},        {"--effects all", "all"},        {"--no-such-option", "--no-such-option"},
+        {"stray", "stray"},              {"--quick --full", "--quick"},   {"--res=640x", "640x"},
+        {"--out=", "--out"},             {"--images=2k", "--images"},     {"--cache-mb 99999999999999999999999", "--cache-mb"},
+    };
+    for (const auto& [args, name] : bad) {
+        INFO(args);
+        CHECK(run_study(info + " " + args, out / "bad.txt") == 2);
+        const std::string log = read_all(out / "bad.txt");
+        CHECK_MESSAGE(log.find(name) != std::string::npos, log);
+    }
 }
 
 #else

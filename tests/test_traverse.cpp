@@ -19,14 +19,11 @@
 #include <string>
 #include <vector>
 
-#if __has_include(<dynbvh/lbvh.hpp>)
 #include <dynbvh/lbvh.hpp>
-#define DYNBVH_TEST_HAVE_LBVH 1
-#endif
 
 using namespace dynbvh;
-using dynbvh::testing::caterpillar_build;
-using dynbvh::testing::median_build;
+using dynbvh::test::caterpillar_build;
+using dynbvh::test::median_build;
 using dynbvh::test::describe;
 using dynbvh::test::same_bits;
 using dynbvh::test::same_hit;
@@ -172,7 +169,7 @@ void check_scene(const std::vector<Triangle<typename NodeT::scalar_type>>& tris,
     CHECK(hits > rays.size() / 5);
 
     const auto bi = build.template operator()<NodeT, prim::indexed>(tris);
-    const auto bp = build.template operator()<NodeT, prim::precomputed>(tris);
+    const auto bp = build.template operator()<NodeT, prim::copied>(tris);
     const ValidateConfig vc{};
     const auto vi = validate(bi, tris, vc), vp = validate(bp, tris, vc);
     REQUIRE_MESSAGE(vi.ok(), vi.summary());
@@ -304,7 +301,7 @@ TEST_CASE("empty BVH and empty input") {
 
 TEST_CASE("single triangle and two triangles") {
     const std::vector<Trianglef> one = {{{0, 0, 0}, {1, 0, 0}, {0, 1, 0}}};
-    const auto b1 = median_build<Node<>, prim::precomputed>(one);
+    const auto b1 = median_build<Node<>, prim::copied>(one);
     REQUIRE(b1.nodes.size() == 1);
     const Hitf h = intersect(b1, one, Rayf{{0.25f, 0.25f, 1}, {0, 0, -1}});
     REQUIRE(h);
@@ -403,7 +400,7 @@ TEST_CASE("closed mesh through a BVH: rays from inside aimed at edges and vertic
         face(a, -1);
         face(a, 1);
     }
-    const auto bvh = median_build<Node<>, prim::precomputed>(tris, 2);
+    const auto bvh = median_build<Node<>, prim::copied>(tris, 2);
     REQUIRE(validate(bvh, tris).ok());
     std::mt19937 rng(17);
     std::uniform_real_distribution<float> d(-0.9f, 0.9f), s(0, 1);
@@ -454,7 +451,6 @@ TEST_CASE("trees deeper than max_depth use a heap stack; a wrong depth field can
     CHECK(c.t == 1000.0f - 149.0f);
 }
 
-#if defined(DYNBVH_TEST_HAVE_LBVH)
 struct LbvhBuilder {
     template <class NodeT, class Prim, class T>
     Bvh<NodeT, Prim> operator()(const std::vector<Triangle<T>>& tris) const {
@@ -469,6 +465,3 @@ TEST_CASE("random soup, LBVH: closest hit == brute force to the bit, any hit agr
     for (auto& t : flat) t.p0.z = t.p1.z = t.p2.z = 0;
     check_scene<Node<>>(flat, 12000, LbvhBuilder{}, "flat/lbvh", false);
 }
-#else
-TEST_CASE("LBVH traversal tests" * doctest::skip()) {}
-#endif

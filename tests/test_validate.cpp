@@ -11,17 +11,11 @@
 #include <string>
 #include <vector>
 
-#if __has_include(<dynbvh/lbvh.hpp>)
 #include <dynbvh/lbvh.hpp>
-#define DYNBVH_TEST_HAVE_LBVH 1
-#endif
-#if __has_include(<dynbvh/kbvh.hpp>)
 #include <dynbvh/kbvh.hpp>
-#define DYNBVH_TEST_HAVE_KBVH 1
-#endif
 
 using namespace dynbvh;
-using dynbvh::testing::median_build;
+using dynbvh::test::median_build;
 
 namespace {
 
@@ -52,7 +46,7 @@ std::size_t first_leaf(const B& bvh) {
 TEST_CASE("valid trees pass") {
     const auto tris = soup(500, 1);
     const auto a = median_build<Node<>, prim::indexed>(tris, 4);
-    const auto b = median_build<Node<>, prim::precomputed>(tris, 1);
+    const auto b = median_build<Node<>, prim::copied>(tris, 1);
     const auto ra = validate(a, tris), rb = validate(b, tris);
     CHECK_MESSAGE(ra.ok(), ra.summary());
     CHECK_MESSAGE(rb.ok(), rb.summary());
@@ -71,13 +65,13 @@ TEST_CASE("valid trees pass") {
     // Double nodes, 64-bit indices.
     std::vector<Triangled> td;
     for (const auto& t : tris) td.push_back({Vec3d(t.p0), Vec3d(t.p1), Vec3d(t.p2)});
-    const auto d = median_build<Node<double, std::uint64_t>, prim::precomputed>(td, 3);
+    const auto d = median_build<Node<double, std::uint64_t>, prim::copied>(td, 3);
     CHECK_MESSAGE(validate(d, td).ok(), validate(d, td).summary());
 }
 
 TEST_CASE("broken trees are caught, with the reason") {
     const auto tris = soup(200, 2);
-    const auto good = median_build<Node<>, prim::precomputed>(tris, 2);
+    const auto good = median_build<Node<>, prim::copied>(tris, 2);
     REQUIRE(validate(good, tris).ok());
 
     SUBCASE("a child box sticking out of its parent") {
@@ -183,7 +177,7 @@ TEST_CASE("broken trees are caught, with the reason") {
         CHECK(mentions(validate(d, tris), "belongs to leaves"));
     }
     SUBCASE("empty tree over finite triangles") {
-        Bvh<Node<>, prim::precomputed> e;
+        Bvh<Node<>, prim::copied> e;
         e.primitive_count = tris.size();
         CHECK(mentions(validate(e, tris), "empty tree but 200 triangles are finite"));
     }
@@ -225,17 +219,14 @@ TEST_CASE("presplit-style fragments: coverage of each triangle by its leaves' bo
     CHECK(mentions(hole, "not covered"));
 }
 
-#if defined(DYNBVH_TEST_HAVE_LBVH)
 TEST_CASE("LBVH trees validate") {
     const auto tris = soup(3000, 4);
     const auto a = lbvh::build<Node<>, prim::indexed>(std::span<const Trianglef>(tris), {}, exec::serial{});
-    const auto b = lbvh::build<Node<>, prim::precomputed>(std::span<const Trianglef>(tris), {}, exec::serial{});
+    const auto b = lbvh::build<Node<>, prim::copied>(std::span<const Trianglef>(tris), {}, exec::serial{});
     CHECK_MESSAGE(validate(a, tris).ok(), validate(a, tris).summary());
     CHECK_MESSAGE(validate(b, tris).ok(), validate(b, tris).summary());
 }
-#endif
 
-#if defined(DYNBVH_TEST_HAVE_KBVH)
 TEST_CASE("presplit KBVH trees validate with fragment coverage") {
     // Long thin triangles, so that presplitting actually splits.
     std::mt19937 rng(5);
@@ -246,9 +237,8 @@ TEST_CASE("presplit KBVH trees validate with fragment coverage") {
         const Vec3f along{d(rng), d(rng), d(rng)};
         t = {o, o + along, o + along * 0.5f + Vec3f{e(rng), e(rng), e(rng)}};
     }
-    const auto b = kbvh::build<Node<>, prim::precomputed>(std::span<const Trianglef>(tris), {}, exec::serial{});
+    const auto b = kbvh::build<Node<>, prim::copied>(std::span<const Trianglef>(tris), {}, exec::serial{});
     const auto r = validate(b, tris, {.expect_single_reference = false});
     CHECK_MESSAGE(r.ok(), r.summary());
     MESSAGE("kbvh: " << r.references << " references for " << tris.size() << " triangles");
 }
-#endif

@@ -142,7 +142,7 @@ TEST_CASE("watertight: rays at edges and vertices of closed meshes never pass th
         // meet exactly where these rays pass).
         const exec::default_executor ex{};
         const auto b0 = lbvh::build(tris, {}, ex);
-        const auto b1 = ploc::build<Node<>, prim::precomputed>(tris, {}, ex);
+        const auto b1 = ploc::build<Node<>, prim::copied>(tris, {}, ex);
         const auto b2 = kbvh::build(tris, {.split = {.beta = 0.5f}}, ex);
         REQUIRE(structure_problems(b0, tris) == "");
         REQUIRE(structure_problems(b1, tris) == "");

@@ -26,10 +26,7 @@
 #include <string>
 #include <vector>
 
-#if __has_include(<dynbvh/io/ply.hpp>)
 #include <dynbvh/io/ply.hpp>
-#define DYNBVH_TEST_HAVE_PLY 1
-#endif
 
 using namespace dynbvh;
 using dynbvh::test::Rng;
@@ -45,7 +42,7 @@ namespace {
 /// Independent check of a wide tree against the binary tree it came from and the triangles.
 /// Returns a description of every problem (empty when fine).
 template <class NodeT, class Prim, int W>
-std::string wide_problems(const Bvh<NodeT, Prim>& bvh, const WideBvh<typename NodeT::scalar_type, typename NodeT::index_type, Prim, W>& w,
+std::string wide_problems(const Bvh<NodeT, Prim>& bvh, const wide_bvh_of<Bvh<NodeT, Prim>, W>& w,
                           std::span<const Triangle<typename NodeT::scalar_type>> tris) {
     using S = typename NodeT::scalar_type;
     std::ostringstream err;
@@ -88,7 +85,7 @@ std::string wide_problems(const Bvh<NodeT, Prim>& bvh, const WideBvh<typename No
             ++used;
             const AABB<S> box = n.bounds(k);
             if (n.is_leaf(k)) {
-                leaf_term += detail::box_area(box.min, box.max) * double(n.count[k]);
+                leaf_term += detail::area(box) * double(n.count[k]);
                 for (std::size_t s = n.child[k]; s < std::size_t(n.child[k]) + n.count[k]; ++s) {
                     if (s >= slot_seen.size() || slot_seen[s]++) {
                         fail("leaf slot " + std::to_string(s) + " out of range or referenced twice");
@@ -121,7 +118,7 @@ std::string wide_problems(const Bvh<NodeT, Prim>& bvh, const WideBvh<typename No
     // SAH: the same leaf term as the binary tree; a smaller (subset) inner term.
     double bin_leaf = 0;
     for (const auto& n : bvh.nodes)
-        if (n.is_leaf()) bin_leaf += detail::box_area(n.min, n.max) * double(n.count);
+        if (n.is_leaf()) bin_leaf += detail::area(n.bounds()) * double(n.count);
     if (!(std::abs(leaf_term - bin_leaf) <= 1e-9 * bin_leaf)) fail("leaf SAH term differs from the binary tree's");
     const double ws = sah_cost(w, {.ct = 3, .ci = 2}), bs = sah_cost(bvh, {.ct = 3, .ci = 2});
     // (a single-leaf binary tree has no inner node; its wide tree has one)
@@ -243,7 +240,7 @@ std::size_t check_exact(const std::vector<Triangle<T>>& tris, std::size_t nrays,
     const std::span<const Triangle<T>> ts(tris);
     const auto rays = make_rays(tris, test::sanitizer_scaled(nrays), 99);
     const auto bi = build.template operator()<prim::indexed>(ts);
-    const auto bp = build.template operator()<prim::precomputed>(ts);
+    const auto bp = build.template operator()<prim::copied>(ts);
     const auto wi = make_wide(bi), wp = make_wide(bp);
     const auto w8 = make_wide<8>(bi), w8p = make_wide<8>(bp);
     CHECK_MESSAGE(wide_problems(bi, wi, ts) == "", what);
@@ -290,7 +287,7 @@ struct Median {
     Bvh<Node<T, std::conditional_t<std::is_same_v<T, float>, std::uint32_t, std::uint64_t>>, Prim>
     operator()(std::span<const Triangle<T>> tris) const {
         using NodeT = Node<T, std::conditional_t<std::is_same_v<T, float>, std::uint32_t, std::uint64_t>>;
-        return testing::median_build<NodeT, Prim>(tris, 3);
+        return test::median_build<NodeT, Prim>(tris, 3);
     }
 };
 struct Lbvh {
@@ -393,12 +390,12 @@ void check_simd_box_test() {
 TEST_CASE("SIMD box test (SSE; AVX for 8-wide nodes where compiled in) equals the scalar box test bit for bit") {
     check_simd_box_test<4>();
     check_simd_box_test<8>();
-#if defined(DYNBVH_WIDE_AVX)
+#if defined(DYNBVH_AVX)
     MESSAGE("8-wide nodes tested with AVX");
 #endif
 }
 
-#if defined(DYNBVH_WIDE_SSE)
+#if defined(DYNBVH_SSE)
 TEST_CASE("SSE ray setup gives box::robust::prepared's values, or declines") {
     // Random rays with +-0, subnormal, huge, NaN and infinite components and empty intervals: where the
     // direct setup accepts a ray, the ray is traceable, unscaled, the octant matches and every box test
@@ -491,7 +488,7 @@ TEST_CASE("conversion: empty tree, one triangle, one leaf, moved tree") {
     CHECK_THROWS_AS(intersect(w1, std::span<const Trianglef>(), Rayf{{0.25f, 0.25f, 1}, {0, 0, -1}}), std::invalid_argument);
 
     const auto soup = test::random_soup(3000, 8);
-    auto b = lbvh::build<Node<>, prim::precomputed>(std::span<const Trianglef>(soup));
+    auto b = lbvh::build<Node<>, prim::copied>(std::span<const Trianglef>(soup));
     const auto copied = make_wide(b);
     const auto moved = make_wide(std::move(b));
     CHECK(b.empty());
@@ -624,7 +621,7 @@ TEST_CASE("trees deeper than max_depth and a wrong depth field: heap stack, same
         tris.push_back({{-1, -1, z}, {3, -1, z}, {-1, 3, z}});
     }
     const std::span<const Trianglef> ts(tris);
-    const auto deep = testing::caterpillar_build<Node<>, prim::indexed>(ts);
+    const auto deep = test::caterpillar_build<Node<>, prim::indexed>(ts);
     auto check = [&](auto w) {
         CHECK(wide_problems(deep, w, ts) == "");
         MESSAGE("caterpillar: binary depth " << deep.depth << ", " << w.width << "-wide depth " << w.depth);
@@ -646,7 +643,6 @@ TEST_CASE("trees deeper than max_depth and a wrong depth field: heap stack, same
     check(make_wide<8>(deep));
 }
 
-#if defined(DYNBVH_TEST_HAVE_PLY)
 TEST_CASE("real data: cloth-ball frame, wide == binary on camera rays") {
     const std::string path = test::data_path("unc/cloth_ball92.ply");
     if (!test::have_data("unc/cloth_ball92.ply")) {
@@ -677,4 +673,3 @@ TEST_CASE("real data: cloth-ball frame, wide == binary on camera rays") {
     CHECK(hits > n / 10);
     CHECK(bad == 0);
 }
-#endif

@@ -58,6 +58,8 @@
 #include <dynbvh/ray.hpp>
 #include <dynbvh/traverse.hpp>
 
+#include "material.hpp"
+
 namespace dynbvh::render {
 
 /// Something that answers one ray at a time: the closest hit (t, u, v, triangle index into the
@@ -188,8 +190,8 @@ inline Needs scene_needs(std::span<const io::Material> materials, std::span<cons
     Needs n;
     n.shadows = !lights.empty();
     for (const io::Material& m : materials) {
-        n.reflections = n.reflections || m.reflects() || m.refracts();
-        n.refractions = n.refractions || m.refracts();
+        n.reflections = n.reflections || reflects(m) || refracts(m);
+        n.refractions = n.refractions || refracts(m);
     }
     return n;
 }
@@ -303,7 +305,7 @@ inline void shade(const SceneView& scene, const Config& cfg, const PathRay& pr, 
     if (max_channel(local) > 0) out.emit.push_back({pr.pixel, local});
 
     if (cfg.shadows) {
-        const bool phong = m.shininess > 0 && m.reflects();
+        const bool phong = m.shininess > 0 && reflects(m);
         for (const io::Light& light : scene.lights) {
             const Vec3f to_light = light.position - p;
             const float dist = length(to_light);
@@ -334,7 +336,7 @@ inline void shade(const SceneView& scene, const Config& cfg, const PathRay& pr, 
     Vec3f kt{0, 0, 0};
     Refraction rf;
     rf.total_internal = true;
-    if (cfg.refractions && m.refracts()) {
+    if (cfg.refractions && refracts(m)) {
         const float eta = front ? 1 / m.ior : m.ior;   // entering: 1 -> ior; leaving: ior -> 1
         rf = refract(d, n, eta);
         const float f = rf.total_internal ? 1.0f : rf.fresnel;

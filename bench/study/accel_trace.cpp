@@ -55,6 +55,6 @@ std::size_t Trees<Prim>::memory_bytes(const BuilderSpec& spec) const {
 }
 
 template struct Trees<prim::indexed>;
-template struct Trees<prim::precomputed>;
+template struct Trees<prim::copied>;
 
 } // namespace dynbvh::study::accel_impl

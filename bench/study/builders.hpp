@@ -39,7 +39,7 @@ struct BuilderSpec {
     std::uint32_t bins = 32;       ///< binned-sah
     bool fast_box = false;         ///< box::fast instead of box::robust
     bool fast_tri = false;         ///< tri::moller_trumbore instead of tri::watertight
-    bool precomputed = false;      ///< prim::precomputed instead of prim::indexed
+    bool precomputed = false;      ///< prim::copied instead of prim::indexed
     int wide = default_wide;       ///< trace a 4- or 8-wide tree converted from the binary one (wide.hpp; the
                                    ///< conversion is part of the timed build); wide=0: the binary traversal
 

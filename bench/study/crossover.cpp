@@ -1,5 +1,6 @@
 #include "crossover.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <limits>
@@ -40,6 +41,12 @@ std::vector<Segment> lower_envelope(const std::vector<CostLine>& lines) {
         cur = next;
     }
     return env;
+}
+
+double lowest_at(const std::vector<CostLine>& lines, double rays) {
+    double best = std::numeric_limits<double>::infinity();
+    for (const auto& l : lines) best = std::min(best, l.at(rays));
+    return best;
 }
 
 std::string format_rays(double rays) {

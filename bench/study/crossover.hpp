@@ -27,6 +27,9 @@ struct Segment {
 /// The lower envelope over rays >= 0, in increasing ray count. Ties go to the cheaper trace.
 std::vector<Segment> lower_envelope(const std::vector<CostLine>& lines);
 
+/// The lowest frame time of all lines at `rays` (the lower envelope's value there); +inf for no lines.
+double lowest_at(const std::vector<CostLine>& lines, double rays);
+
 /// "1.2 M", "350 k", "900".
 std::string format_rays(double rays);
 

@@ -33,7 +33,7 @@ void trace_tiles(const Backend& backend, const RayGen& gen, std::span<std::uint3
     });
 }
 
-/// A DynAccel<Exec, prim::indexed or prim::precomputed> for `spec` (one of our builders).
+/// A DynAccel<Exec, prim::indexed or prim::copied> for `spec` (one of our builders).
 template <class Exec>
 std::unique_ptr<Accel> make_dyn_accel(const BuilderSpec& spec, const Exec& ex, const Backend& backend);
 
@@ -45,7 +45,8 @@ namespace accel_impl {
 template <class Prim>
 struct Trees {
     using BvhT = Bvh<Node<>, Prim>;
-    BvhT bvh;                          ///< always built (refit and the SAH column use it)
+    BvhT bvh;                          ///< always built (refit and the SAH column use it); its leaf part
+                                       ///< moves to the wide tree when there is one
     wide_bvh_of<BvhT, 4> wide4;        ///< built when spec.wide == 4
     wide_bvh_of<BvhT, 8> wide8;        ///< built when spec.wide == 8
 
@@ -58,7 +59,7 @@ struct Trees {
     std::size_t memory_bytes(const BuilderSpec& spec) const;
 };
 extern template struct Trees<prim::indexed>;
-extern template struct Trees<prim::precomputed>;
+extern template struct Trees<prim::copied>;
 
 /// Our builders on executor Exec with primitive policy Prim.
 template <class Exec, class Prim>
@@ -70,8 +71,17 @@ public:
         previous_ = std::move(current_);   // freed untimed in release_previous()
         build_binary(tris);
         // The 4- or 8-wide tree traced when spec_.wide (timed as part of the build).
-        if (spec_.wide == 4) current_.wide4 = make_wide<4>(current_.bvh, ex_);
-        if (spec_.wide == 8) current_.wide8 = make_wide<8>(current_.bvh, ex_);
+        if (spec_.wide == 4) current_.wide4 = take_wide<4>(current_.bvh);
+        if (spec_.wide == 8) current_.wide8 = take_wide<8>(current_.bvh);
+    }
+    /// The wide tree over `bvh`'s leaf part, which it takes over (one copy of the references per frame);
+    /// `bvh` keeps its nodes for the SAH column and gets the leaf part back before a refit.
+    template <int W>
+    wide_bvh_of<typename Trees<Prim>::BvhT, W> take_wide(typename Trees<Prim>::BvhT& bvh) {
+        auto leaves = std::move(bvh.leaves());
+        auto wide = make_wide<W>(bvh, ex_);   // copies an empty leaf part
+        wide.leaves() = std::move(leaves);
+        return wide;
     }
     void build_binary(std::span<const Trianglef> tris) {
         const LeafConfig leaves{.max_leaf_size = spec_.max_leaf};
@@ -81,6 +91,8 @@ public:
                 bvh = lbvh::build<Node<>, Prim>(tris, {.morton_bits = spec_.morton_bits, .leaves = leaves}, ex_);
                 break;
             case Kind::refit:
+                if (!previous_.wide4.empty()) previous_.bvh.leaves() = std::move(previous_.wide4.leaves());
+                if (!previous_.wide8.empty()) previous_.bvh.leaves() = std::move(previous_.wide8.leaves());
                 if (previous_.bvh.empty() || previous_.bvh.primitive_count != tris.size()) {
                     bvh = lbvh::build<Node<>, Prim>(tris, {.morton_bits = spec_.morton_bits, .leaves = leaves}, ex_);
                 } else {
@@ -111,7 +123,7 @@ public:
     void trace(std::span<const Trianglef> tris, const RayGen& gen, std::span<std::uint32_t> out) override {
         current_.trace(spec_, backend_, tris, gen, out);
     }
-    std::optional<double> sah() const override { return sah_cost(current_.bvh, SahConfig{.ct = 3, .ci = 2}, ex_); }
+    std::optional<double> sah() const override { return sah_cost(current_.bvh, SahCost{.ct = 3, .ci = 2}, ex_); }
     std::optional<std::size_t> memory_bytes() const override { return current_.memory_bytes(spec_); }
     /// Single-ray queries (effect rays) go through the same tree as trace().
     Hitf intersect(std::span<const Trianglef> tris, const Rayf& r) const override { return current_.intersect(spec_, tris, r); }
@@ -128,7 +140,7 @@ private:
 
 template <class Exec>
 std::unique_ptr<Accel> make_dyn_accel(const BuilderSpec& spec, const Exec& ex, const Backend& backend) {
-    if (spec.precomputed) return std::make_unique<accel_impl::DynAccel<Exec, prim::precomputed>>(spec, ex, backend);
+    if (spec.precomputed) return std::make_unique<accel_impl::DynAccel<Exec, prim::copied>>(spec, ex, backend);
     return std::make_unique<accel_impl::DynAccel<Exec, prim::indexed>>(spec, ex, backend);
 }
 

@@ -20,7 +20,7 @@ int main(int argc, char** argv) {
     try {
         opt = parse_options(argc, argv);
     } catch (const std::exception& e) {
-        std::fprintf(stderr, "dynbvh-study: %s\n", e.what());
+        std::fprintf(stderr, "dynbvh-study: %s (see --help)\n", e.what());
         return 2;
     }
     if (opt.help) {

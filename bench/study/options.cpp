@@ -2,7 +2,10 @@
 
 #include <charconv>
 #include <cmath>
+#include <cstdint>
 #include <stdexcept>
+
+#include <cli.hpp>
 
 namespace dynbvh::study {
 
@@ -21,36 +24,29 @@ std::vector<std::string> split_list(const std::string& s, char sep) {
     return out;
 }
 
-namespace {
-
-template <class T>
-T parse_number(const std::string& opt, const std::string& v) {
-    T x{};
-    const char* end = v.data() + v.size();
-    const auto r = std::from_chars(v.data(), end, x);
-    if (v.empty() || r.ec != std::errc() || r.ptr != end)
-        throw std::invalid_argument(opt + ": '" + v + "' is not a valid number");
-    return x;
-}
-
-} // namespace
-
 Resolution parse_resolution(const std::string& s) {
     const auto x = s.find('x');
+    auto dim = [&](const std::string& v) {
+        int d = 0;
+        const char* end = v.data() + v.size();
+        const auto r = std::from_chars(v.data(), end, d);
+        if (v.empty() || r.ec != std::errc() || r.ptr != end) throw std::invalid_argument("--res: '" + s + "' is not WIDTHxHEIGHT");
+        return d;
+    };
     if (x == std::string::npos) throw std::invalid_argument("--res: '" + s + "' is not WIDTHxHEIGHT");
-    Resolution r{parse_number<int>("--res", s.substr(0, x)), parse_number<int>("--res", s.substr(x + 1))};
+    Resolution r{dim(s.substr(0, x)), dim(s.substr(x + 1))};
     if (r.width <= 0 || r.height <= 0 || r.width > 16384 || r.height > 16384)
         throw std::invalid_argument("--res: '" + s + "' must be between 1x1 and 16384x16384");
     return r;
 }
 
-std::string usage() {
-    return R"(dynbvh-study: the thesis's BVH study (build + trace per frame, FPS, SAH) on any scene, beside Embree.
+namespace {
 
-Usage: dynbvh-study [options]
-       dynbvh-study --info SCENE
+const char* const description =
+    "dynbvh-study: the thesis's BVH study (build + trace per frame, FPS, SAH) on any scene, beside Embree.\n"
+    "dynbvh-study --info SCENE describes one scene as JSON and exits.";
 
-Scenes (--scenes, comma separated; default: every built-in scene)
+const char* const footer = R"(Scenes (--scenes, comma separated; default: every built-in scene)
   cloth-ball, n-body, breaking, large-breaking, funnel   built-in scenes (generated in memory)
   mesh.ply, mesh.obj                                      one file = one frame
   dir/cloth_%03d.ply                                      printf-style frame pattern
@@ -66,39 +62,94 @@ Builders (--builders, comma separated; default: all available)
   tree converted from the binary one; default 8 when built with AVX, else 4), ploc:wide=0 (the binary
   tree), e.g. ploc:r=10:leaf=4
 
-Options
-  --res WxH,...        resolutions (default 854x480,1920x1080,3840x2160)
-  --reps N             repetitions (default 1; --full: 10)
-  --frames N           at most N frames per scene (default all)
-  --frame-step K       use every K-th frame (default 1)
-  --threads N          worker threads (default: all cores)
-  --backend B          tbb | omp | serial (default tbb when built with it: Embree shares its workers)
-  --out DIR            output directory (default out/study)
-  --scale S            built-in scenes' triangle-count scale, 0 < S <= 16 (default 1)
-  --seed N             built-in scenes' seed (default 1)
-  --images N           frames rendered to PNG per scene (default 3; 0: none)
-  --cache-mb N         keep generated frames in memory up to N MiB (default 2048)
-  --no-warmup          skip the untimed warm-up build + trace per builder
-  --effects E          primary (default): one primary ray per pixel, the thesis's protocol;
-                       auto: after the primary trace, render every frame Whitted-style with the effects the
-                       scene calls for (shadow rays towards its lights, reflection rays from specular or
-                       transparent materials, refraction rays from transparent ones) and report rays and
-                       trace time per effect; the PNG renders then show those effects
-  --effects-depth N    most reflection/refraction bounces with --effects auto (default 5)
-  --quick              every built-in scene at scale 0.1, all builders, 8 frames spread over each animation,
-                       427x240 and 854x480, a small sweep on cloth-ball (3 repetitions): under 3 minutes on 2 cores
-  --full               the thesis protocol: full scale, all frames, 3 resolutions, 10 repetitions
-  --sweep              after the study, measure what accuracy costs in time (PLOC radius, presplit budget,
-                       Morton bits, leaf size, triangle and box tests) and where each setting starts to win
-  --sweep-only         only the sweep
-  --sweep-scenes LIST  scenes of the sweep (default: the study's scenes)
-  --sweep-reps N       repetitions of the sweep (default: --reps; --quick: 3)
-  --info SCENE         print one JSON object describing SCENE and exit
-  --help
+Options take their value as --x V or --x=V.
 
 Output (in --out): study.json and study.csv (every frame's measurement, machine, compiler, backend,
 threads), report.md with SVG plots and PNG renders; tables like the thesis's Tables 5.2-5.5 on stdout.
 )";
+
+/// The values as typed, where they need more than CLI11's conversion (lists, presets, cross checks).
+struct Raw {
+    std::string scenes, builders, res, sweep_scenes, backend, effects, out;
+    bool no_warmup = false;
+};
+
+/// `text` broken into lines of at most ~72 characters, continued under CLI11's description column.
+std::string wrap(const std::string& text) {
+    std::string out, line;
+    for (const auto& word : split_list(text, ' ')) {
+        if (!line.empty() && line.size() + 1 + word.size() > 72) {
+            out += line + "\n" + std::string(30, ' ');
+            line.clear();
+        }
+        line += (line.empty() ? "" : " ") + word;
+    }
+    return out + line;
+}
+
+void define(CLI::App& app, Options& o, Raw& raw) {
+    using cli::number_in;
+    cli::take_last(app);
+    app.footer(footer);
+    app.add_option("--scenes", raw.scenes, "scenes, comma separated (see below; default: every built-in scene)")->type_name("LIST");
+    app.add_option("--builders", raw.builders, "builders, comma separated (see below; default: all available)")->type_name("LIST");
+    app.add_option("--res", raw.res, "resolutions (default 854x480,1920x1080,3840x2160)")->type_name("WxH,...");
+    app.add_option("--reps", o.reps, "repetitions (default 1; --full: 10)")->type_name("N")->check(number_in(1, 1000));
+    app.add_option("--frames", o.frames, "at most N frames per scene (default all)")
+        ->type_name("N")
+        ->check(number_in<std::size_t>(1, SIZE_MAX));
+    app.add_option("--frame-step", o.frame_step, "use every K-th frame (default 1)")
+        ->type_name("K")
+        ->check(number_in<std::size_t>(1, SIZE_MAX));
+    app.add_option("--threads", o.threads, "worker threads (default 0: all cores)")->type_name("N")->check(number_in(0, 4096));
+    app.add_option("--backend", raw.backend, "tbb | omp | serial (default tbb when built with it: Embree shares its workers)")
+        ->type_name("B");
+    app.add_option("--out", raw.out, "output directory (default out/study)")->type_name("DIR");
+    app.add_option("--scale", o.scale, "built-in scenes' triangle-count scale, 0 < S <= 16 (default 1)")
+        ->type_name("S")
+        ->check(number_in(0.0, 16.0));
+    app.add_option("--seed", o.seed, "built-in scenes' seed (default 1)")
+        ->type_name("N")
+        ->check(number_in<std::uint64_t>(0, UINT64_MAX));
+    app.add_option("--images", o.images, "frames rendered to PNG per scene (default 3; 0: none)")
+        ->type_name("N")
+        ->check(number_in<std::size_t>(0, SIZE_MAX));
+    app.add_option("--cache-mb", o.cache_mb, "keep generated frames in memory up to N MiB (default 2048)")
+        ->type_name("N")
+        ->check(number_in<std::size_t>(0, SIZE_MAX));
+    app.add_flag("--no-warmup", raw.no_warmup, "skip the untimed warm-up build + trace per builder");
+    app.add_option("--effects", raw.effects,
+                   wrap("primary (default): one primary ray per pixel, the thesis's protocol; auto: after the primary trace, render "
+                   "every frame Whitted-style with the effects the scene calls for (shadow rays towards its lights, reflection "
+                   "rays from specular or transparent materials, refraction rays from transparent ones) and report rays and "
+                   "trace time per effect; the PNG renders then show those effects"))
+        ->type_name("E");
+    app.add_option("--effects-depth", o.effects_depth, "most reflection/refraction bounces with --effects auto (default 5)")
+        ->type_name("N")
+        ->check(number_in(0, 64));
+    app.add_flag("--quick", o.quick,
+                 wrap("every built-in scene at scale 0.1, all builders, 8 frames spread over each animation, 427x240 and 854x480, "
+                 "a small sweep on cloth-ball (3 repetitions): under 3 minutes on 2 cores"));
+    app.add_flag("--full", o.full, "the thesis protocol: full scale, all frames, 3 resolutions, 10 repetitions");
+    app.add_flag("--sweep", o.sweep,
+                 wrap("after the study, measure what accuracy costs in time (PLOC radius, presplit budget, Morton bits, leaf size, "
+                 "triangle and box tests) and where each setting starts to win"));
+    app.add_flag("--sweep-only", o.sweep_only, "only the sweep");
+    app.add_option("--sweep-scenes", raw.sweep_scenes, "scenes of the sweep (default: the study's scenes)")->type_name("LIST");
+    app.add_option("--sweep-reps", o.sweep_reps, "repetitions of the sweep (default: --reps; --quick: 3)")
+        ->type_name("N")
+        ->check(number_in(1, 1000));
+    app.add_option("--info", o.info, "print one JSON object describing SCENE and exit")->type_name("SCENE");
+}
+
+} // namespace
+
+std::string usage() {
+    CLI::App app{description, "dynbvh-study"};
+    Options o;
+    Raw raw;
+    define(app, o, raw);
+    return app.help();
 }
 
 Options parse_options(int argc, char** argv) {
@@ -107,90 +158,53 @@ Options parse_options(int argc, char** argv) {
         if (i) o.command_line += ' ';
         o.command_line += argv[i];
     }
-    bool res_given = false, reps_given = false, frames_given = false, scale_given = false, step_given = false;
-    auto value = [&](int& i, const std::string& opt) -> std::string {
-        if (i + 1 >= argc) throw std::invalid_argument(opt + " needs a value");
-        return argv[++i];
-    };
-    for (int i = 1; i < argc; ++i) {
-        std::string a = argv[i];
-        std::string inline_value;
-        bool has_inline = false;
-        if (a.rfind("--", 0) == 0) {
-            const auto eq = a.find('=');
-            if (eq != std::string::npos) {
-                inline_value = a.substr(eq + 1);
-                a = a.substr(0, eq);
-                has_inline = true;
-            }
+    CLI::App app{description, "dynbvh-study"};
+    Raw raw;
+    define(app, o, raw);
+    try {
+        app.parse(argc, argv);
+    } catch (const CLI::ParseError& e) {
+        if (e.get_exit_code() == 0) {
+            o.help = true;
+            return o;
         }
-        auto val = [&]() { return has_inline ? inline_value : value(i, a); };
-        if (a == "--help" || a == "-h") o.help = true;
-        else if (a == "--scenes") o.scenes = split_list(val());
-        else if (a == "--builders") o.builders = split_list(val());
-        else if (a == "--res") {
-            o.resolutions.clear();
-            for (const auto& r : split_list(val())) o.resolutions.push_back(parse_resolution(r));
-            if (o.resolutions.empty()) throw std::invalid_argument("--res: no resolution given");
-            res_given = true;
-        } else if (a == "--reps") {
-            o.reps = parse_number<int>(a, val());
-            if (o.reps < 1 || o.reps > 1000) throw std::invalid_argument("--reps must be between 1 and 1000");
-            reps_given = true;
-        } else if (a == "--frames") {
-            o.frames = parse_number<std::size_t>(a, val());
-            if (o.frames == 0) throw std::invalid_argument("--frames must be at least 1");
-            frames_given = true;
-        } else if (a == "--frame-step") {
-            o.frame_step = parse_number<std::size_t>(a, val());
-            if (o.frame_step == 0) throw std::invalid_argument("--frame-step must be at least 1");
-            step_given = true;
-        } else if (a == "--threads") {
-            o.threads = parse_number<int>(a, val());
-            if (o.threads < 0 || o.threads > 4096) throw std::invalid_argument("--threads must be between 0 and 4096");
-        } else if (a == "--backend") {
-            o.backend = val();
-            if (o.backend != "omp" && o.backend != "tbb" && o.backend != "serial")
-                throw std::invalid_argument("--backend must be omp, tbb or serial, not '" + o.backend + "'");
-        } else if (a == "--out") {
-            o.out = val();
-            if (o.out.empty()) throw std::invalid_argument("--out needs a directory");
-        } else if (a == "--scale") {
-            o.scale = parse_number<double>(a, val());
-            if (!(o.scale > 0 && o.scale <= 16)) throw std::invalid_argument("--scale must be in (0, 16]");
-            scale_given = true;
-        } else if (a == "--seed") o.seed = parse_number<std::uint64_t>(a, val());
-        else if (a == "--images") o.images = parse_number<std::size_t>(a, val());
-        else if (a == "--cache-mb") o.cache_mb = parse_number<std::size_t>(a, val());
-        else if (a == "--no-warmup") o.warmup = false;
-        else if (a == "--effects") {
-            const std::string e = val();
-            if (e != "auto" && e != "primary") throw std::invalid_argument("--effects must be auto or primary, not '" + e + "'");
-            o.effects = e == "auto";
-        } else if (a == "--effects-depth") {
-            o.effects_depth = parse_number<int>(a, val());
-            if (o.effects_depth < 0 || o.effects_depth > 64) throw std::invalid_argument("--effects-depth must be between 0 and 64");
-        }
-        else if (a == "--quick") o.quick = true;
-        else if (a == "--full") o.full = true;
-        else if (a == "--sweep") o.sweep = true;
-        else if (a == "--sweep-only") o.sweep = o.sweep_only = true;
-        else if (a == "--sweep-scenes") o.sweep_scenes = split_list(val());
-        else if (a == "--sweep-reps") {
-            o.sweep_reps = parse_number<int>(a, val());
-            if (o.sweep_reps < 1 || o.sweep_reps > 1000) throw std::invalid_argument("--sweep-reps must be between 1 and 1000");
-        }
-        else if (a == "--info") o.info = val();
-        else throw std::invalid_argument("unknown option '" + a + "' (see --help)");
+        throw std::invalid_argument(e.what());
     }
+    const auto given = [&](const char* name) { return app.count(name) > 0; };
+    // Lists, choices and checks across options.
+    if (given("--scenes")) o.scenes = split_list(raw.scenes);
+    if (given("--builders")) o.builders = split_list(raw.builders);
+    if (given("--sweep-scenes")) o.sweep_scenes = split_list(raw.sweep_scenes);
+    if (given("--res")) {
+        o.resolutions.clear();
+        for (const auto& r : split_list(raw.res)) o.resolutions.push_back(parse_resolution(r));
+        if (o.resolutions.empty()) throw std::invalid_argument("--res: no resolution given");
+    }
+    if (given("--backend")) {
+        o.backend = raw.backend;
+        if (o.backend != "omp" && o.backend != "tbb" && o.backend != "serial")
+            throw std::invalid_argument("--backend must be omp, tbb or serial, not '" + o.backend + "'");
+    }
+    if (given("--out")) {
+        if (raw.out.empty()) throw std::invalid_argument("--out needs a directory");
+        o.out = raw.out;
+    }
+    if (!(o.scale > 0)) throw std::invalid_argument("--scale must be in (0, 16]");
+    if (given("--effects")) {
+        if (raw.effects != "auto" && raw.effects != "primary")
+            throw std::invalid_argument("--effects must be auto or primary, not '" + raw.effects + "'");
+        o.effects = raw.effects == "auto";
+    }
+    if (raw.no_warmup) o.warmup = false;
+    if (o.sweep_only) o.sweep = true;
     if (o.quick && o.full) throw std::invalid_argument("--quick and --full exclude each other");
     // Presets fill only what the user did not set.
     if (o.quick) {
-        if (!scale_given) o.scale = 0.1;
-        if (!res_given) o.resolutions = {{427, 240}, {854, 480}};
-        if (!frames_given) o.frames = 8;
-        if (!step_given) o.frame_step = 0;   // 0: spread the frames over the whole animation
-        if (!reps_given) o.reps = 1;
+        if (!given("--scale")) o.scale = 0.1;
+        if (!given("--res")) o.resolutions = {{427, 240}, {854, 480}};
+        if (!given("--frames")) o.frames = 8;
+        if (!given("--frame-step")) o.frame_step = 0;   // 0: spread the frames over the whole animation
+        if (!given("--reps")) o.reps = 1;
         if (!o.sweep) {
             o.sweep = true;
             o.sweep_small = true;
@@ -199,7 +213,7 @@ Options parse_options(int argc, char** argv) {
         }
     }
     if (o.full) {
-        if (!reps_given) o.reps = 10;
+        if (!given("--reps")) o.reps = 10;
     }
     return o;
 }

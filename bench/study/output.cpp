@@ -1,216 +1,164 @@
 #include "output.hpp"
 
+#include <charconv>
+#include <cmath>
 #include <fstream>
+#include <optional>
 #include <stdexcept>
 
-#include "json.hpp"
+#include <nlohmann/json.hpp>
 
 namespace dynbvh::study {
 
 namespace {
 
+// Fields stay in the order written (study.json is read by people too).
+using Json = nlohmann::ordered_json;
+
+template <class T>
+Json opt(const std::optional<T>& x) {
+    return x ? Json(*x) : Json(nullptr);
+}
+
 /// {"rays": {"primary": n, ...}, "ms": {...}, "shade_ms": x, "depth": d}, every figure divided by `n`.
-void write_effects(JsonWriter& j, const EffectsRecord& e, double n) {
-    j.begin_object(true);
-    j.key("rays");
-    j.begin_object(true);
-    for (std::size_t k = 0; k < 4; ++k) j.kv(effect_kind_names[k], double(e.rays[k]) / n);
-    j.end_object();
-    j.key("ms");
-    j.begin_object(true);
-    for (std::size_t k = 0; k < 4; ++k) j.kv(effect_kind_names[k], e.ms[k] / n);
-    j.end_object();
-    j.kv("shade_ms", e.shade_ms / n);
-    j.kv("depth", e.depth);
-    j.end_object();
-}
-
-void write_records(JsonWriter& j, const std::vector<FrameRecord>& recs) {
-    j.key("per_frame");
-    j.begin_array();
-    for (const auto& f : recs) {
-        j.begin_object(true);
-        j.kv("rep", f.rep);
-        j.kv("frame", f.frame);
-        j.kv("triangles", f.triangles);
-        j.kv("build_ms", f.build_ms);
-        j.kv("trace_ms", f.trace_ms);
-        j.kv("sah", f.sah);
-        j.kv("memory_bytes", f.memory_bytes);
-        j.kv("hits", f.hits);
-        if (f.effects) {
-            j.key("effects");
-            write_effects(j, *f.effects, 1);
-        }
-        j.end_object();
+Json effects_json(const EffectsRecord& e, double n) {
+    Json rays = Json::object(), ms = Json::object();
+    for (std::size_t k = 0; k < 4; ++k) {
+        rays[effect_kind_names[k]] = double(e.rays[k]) / n;
+        ms[effect_kind_names[k]] = e.ms[k] / n;
     }
-    j.end_array();
+    return {{"rays", rays}, {"ms", ms}, {"shade_ms", e.shade_ms / n}, {"depth", e.depth}};
 }
 
-void write_summary(JsonWriter& j, const Summary& s) {
-    j.kv("frames", s.frames);
-    j.kv("total_build_ms", s.total_build_ms);
-    j.kv("total_trace_ms", s.total_trace_ms);
-    j.kv("mean_build_ms", s.mean_build_ms);
-    j.kv("mean_trace_ms", s.mean_trace_ms);
-    j.kv("mrays_per_s", s.mrays_per_s);
-    j.kv("fps", s.fps);
-    j.kv("mean_sah", s.mean_sah);
-    j.kv("mean_memory_bytes", s.mean_memory_bytes);
+Json records_json(const std::vector<FrameRecord>& recs) {
+    Json a = Json::array();
+    for (const auto& f : recs) {
+        Json j = {{"rep", f.rep},         {"frame", f.frame},   {"triangles", f.triangles},
+                  {"build_ms", f.build_ms}, {"trace_ms", f.trace_ms}, {"sah", opt(f.sah)},
+                  {"memory_bytes", opt(f.memory_bytes)}, {"hits", f.hits}};
+        if (f.effects) j["effects"] = effects_json(*f.effects, 1);
+        a.push_back(std::move(j));
+    }
+    return a;
 }
 
-void write_scene(JsonWriter& j, const SceneSummary& s) {
-    j.begin_object();
-    j.kv("name", s.name);
-    j.kv("spec", s.spec);
-    j.kv("kind", s.kind);
-    j.kv("format", s.format);
-    j.kv("scale", s.scale);
-    j.kv("motion", s.motion);
-    j.kv("topology_changes", s.topology_changes);
-    j.kv("frames_total", s.frames_total);
-    j.key("frames_used");
-    j.begin_array(true);
-    for (auto f : s.frames_used) j.value(f);
-    j.end_array();
-    j.kv("triangles_min", s.triangles_min);
-    j.kv("triangles_max", s.triangles_max);
-    j.kv("materials", s.materials);
-    j.kv("lights", s.lights);
-    j.end_object();
+void add_summary(Json& j, const Summary& s) {
+    j["frames"] = s.frames;
+    j["total_build_ms"] = s.total_build_ms;
+    j["total_trace_ms"] = s.total_trace_ms;
+    j["mean_build_ms"] = s.mean_build_ms;
+    j["mean_trace_ms"] = s.mean_trace_ms;
+    j["mrays_per_s"] = s.mrays_per_s;
+    j["fps"] = s.fps;
+    j["mean_sah"] = opt(s.mean_sah);
+    j["mean_memory_bytes"] = opt(s.mean_memory_bytes);
+}
+
+Json scene_json(const SceneSummary& s) {
+    return {{"name", s.name},
+            {"spec", s.spec},
+            {"kind", s.kind},
+            {"format", s.format},
+            {"scale", s.scale},
+            {"motion", s.motion},
+            {"topology_changes", s.topology_changes},
+            {"frames_total", s.frames_total},
+            {"frames_used", s.frames_used},
+            {"triangles_min", s.triangles_min},
+            {"triangles_max", s.triangles_max},
+            {"materials", s.materials},
+            {"lights", s.lights}};
 }
 
 } // namespace
 
+std::string json_text(const nlohmann::ordered_json& j) {
+    // NaN and inf come out as null; bytes that are not UTF-8 (a path, a CPU name) as U+FFFD.
+    return j.dump(1, ' ', false, nlohmann::ordered_json::error_handler_t::replace) + "\n";
+}
+
 std::string study_json(const StudyResults& r) {
-    JsonWriter j(true);
-    j.begin_object();
-    j.kv("format", "dynbvh-study 1");
-    j.key("machine");
-    j.begin_object();
-    j.kv("cpu", r.machine.cpu);
-    j.kv("cores", r.machine.cores);
-    j.kv("memory_gib", r.machine.memory_gib);
-    j.end_object();
-    j.kv("compiler", r.machine.compiler);
-    j.kv("backend", r.backend);
-    j.kv("threads", r.threads);
-    j.kv("date", r.machine.date);
-    j.key("embree");
-    if (r.machine.embree.empty()) j.null();
-    else j.value(r.machine.embree);
-    j.kv("wall_s", r.wall_s);
+    Json j;
+    j["format"] = "dynbvh-study 1";
+    j["machine"] = {{"cpu", r.machine.cpu}, {"cores", r.machine.cores}, {"memory_gib", r.machine.memory_gib}};
+    j["compiler"] = r.machine.compiler;
+    j["backend"] = r.backend;
+    j["threads"] = r.threads;
+    j["date"] = r.machine.date;
+    j["embree"] = r.machine.embree.empty() ? Json(nullptr) : Json(r.machine.embree);
+    j["wall_s"] = r.wall_s;
     const Options& o = r.options;
-    j.key("options");
-    j.begin_object();
-    j.kv("command_line", o.command_line);
-    j.key("resolutions");
-    j.begin_array(true);
-    for (const auto& x : o.resolutions) j.value(x.str());
-    j.end_array();
-    j.kv("reps", o.reps);
-    j.kv("frames", o.frames);
-    j.kv("frame_step", o.frame_step);
-    j.kv("scale", o.scale);
-    j.kv("seed", static_cast<unsigned long long>(o.seed));
-    j.kv("quick", o.quick);
-    j.kv("full", o.full);
-    j.kv("sweep", o.sweep);
-    j.kv("warmup", o.warmup);
-    j.kv("effects", o.effects ? "auto" : "primary");
-    j.kv("effects_depth", o.effects_depth);
-    j.end_object();
-    j.key("builders");
-    j.begin_array(true);
-    for (const auto& b : r.builders) j.value(b);
-    j.end_array();
-    j.key("scenes");
-    j.begin_array();
-    for (const auto& s : r.scenes) write_scene(j, s);
-    j.end_array();
-    j.key("results");
-    j.begin_array();
+    Json res = Json::array();
+    for (const auto& x : o.resolutions) res.push_back(x.str());
+    j["options"] = {{"command_line", o.command_line},
+                    {"resolutions", res},
+                    {"reps", o.reps},
+                    {"frames", o.frames},
+                    {"frame_step", o.frame_step},
+                    {"scale", o.scale},
+                    {"seed", o.seed},
+                    {"quick", o.quick},
+                    {"full", o.full},
+                    {"sweep", o.sweep},
+                    {"warmup", o.warmup},
+                    {"effects", o.effects ? "auto" : "primary"},
+                    {"effects_depth", o.effects_depth}};
+    j["builders"] = r.builders;
+    j["scenes"] = Json::array();
+    for (const auto& s : r.scenes) j["scenes"].push_back(scene_json(s));
+    j["results"] = Json::array();
     for (const auto& g : r.groups) {
-        j.begin_object();
-        j.kv("scene", g.scene);
-        j.kv("builder", g.builder);
-        j.kv("width", g.res.width);
-        j.kv("height", g.res.height);
-        j.kv("rays_per_frame", g.res.rays());
-        j.kv("reps", o.reps);
-        write_summary(j, g.summary());
-        j.key("effects");   // means per frame of the records' effects, or null
-        if (const auto e = sum_effects(g.records); e && !g.records.empty()) write_effects(j, *e, double(g.records.size()));
-        else j.null();
-        write_records(j, g.records);
-        j.end_object();
+        Json x = {{"scene", g.scene},   {"builder", g.builder},          {"width", g.res.width},
+                  {"height", g.res.height}, {"rays_per_frame", g.res.rays()}, {"reps", o.reps}};
+        add_summary(x, g.summary());
+        // means per frame of the records' effects, or null
+        const auto e = sum_effects(g.records);
+        x["effects"] = e && !g.records.empty() ? effects_json(*e, double(g.records.size())) : Json(nullptr);
+        x["per_frame"] = records_json(g.records);
+        j["results"].push_back(std::move(x));
     }
-    j.end_array();
-    j.key("images");
-    j.begin_array();
-    for (const auto& im : r.images) {
-        j.begin_object(true);
-        j.kv("scene", im.scene);
-        j.kv("frame", im.frame);
-        j.kv("builder", im.builder);
-        j.kv("width", im.res.width);
-        j.kv("height", im.res.height);
-        j.kv("file", im.file);
-        j.kv("hit_pixels", im.hit_pixels);
-        j.end_object();
-    }
-    j.end_array();
-    j.key("skipped");
-    j.begin_array();
-    for (const auto& s : r.skipped) {
-        j.begin_object(true);
-        j.kv("scene", s.scene);
-        j.kv("builder", s.builder);
-        j.kv("reason", s.reason);
-        j.end_object();
-    }
-    j.end_array();
-    j.key("notices");
-    j.begin_array();
-    for (const auto& n : r.notices) j.value(n);
-    j.end_array();
-    j.key("sweep");
+    j["images"] = Json::array();
+    for (const auto& im : r.images)
+        j["images"].push_back({{"scene", im.scene},         {"frame", im.frame}, {"builder", im.builder},
+                               {"width", im.res.width},     {"height", im.res.height}, {"file", im.file},
+                               {"hit_pixels", im.hit_pixels}});
+    j["skipped"] = Json::array();
+    for (const auto& s : r.skipped) j["skipped"].push_back({{"scene", s.scene}, {"builder", s.builder}, {"reason", s.reason}});
+    j["notices"] = r.notices;
     if (r.sweep.empty()) {
-        j.null();
+        j["sweep"] = nullptr;
     } else {
-        j.begin_object();
-        j.kv("reference", r.sweep_reference);
-        j.key("scenes");
-        j.begin_array();
-        for (const auto& s : r.sweep_scenes) write_scene(j, s);
-        j.end_array();
-        j.key("settings");
-        j.begin_array();
+        Json sw;
+        sw["reference"] = r.sweep_reference;
+        sw["scenes"] = Json::array();
+        for (const auto& s : r.sweep_scenes) sw["scenes"].push_back(scene_json(s));
+        sw["settings"] = Json::array();
         for (const auto& x : r.sweep) {
-            j.begin_object();
-            j.kv("scene", x.scene);
-            j.kv("group", x.group);
-            j.kv("value", x.value);
-            j.kv("setting", x.setting);
-            j.kv("width", x.res.width);
-            j.kv("height", x.res.height);
-            j.kv("rays_per_frame", x.res.rays());
-            write_summary(j, x.summary());
-            j.kv("compared_pixels", x.compared_pixels);
-            j.kv("hits_changed", x.changed);
-            j.kv("hits_lost", x.lost);
-            j.kv("hits_gained", x.gained);
-            write_records(j, x.records);
-            j.end_object();
+            Json y = {{"scene", x.scene}, {"group", x.group},          {"value", x.value},
+                      {"setting", x.setting}, {"width", x.res.width},  {"height", x.res.height},
+                      {"rays_per_frame", x.res.rays()}};
+            add_summary(y, x.summary());
+            y["compared_pixels"] = x.compared_pixels;
+            y["hits_changed"] = x.changed;
+            y["hits_lost"] = x.lost;
+            y["hits_gained"] = x.gained;
+            y["per_frame"] = records_json(x.records);
+            sw["settings"].push_back(std::move(y));
         }
-        j.end_array();
-        j.end_object();
+        j["sweep"] = std::move(sw);
     }
-    j.end_object();
-    return j.str();
+    return json_text(j);
 }
 
 namespace {
+/// Shortest text that reads back as `x`; empty for NaN/inf.
+std::string csv_number(double x) {
+    if (!std::isfinite(x)) return "";
+    char buf[64];
+    const auto r = std::to_chars(buf, buf + sizeof buf, x);
+    return std::string(buf, r.ptr);
+}
+
 std::string csv_field(const std::string& s) {
     if (s.find_first_of(",\"\n") == std::string::npos) return s;
     std::string o = "\"";
@@ -227,12 +175,12 @@ std::string study_csv(const StudyResults& r) {
                    const FrameRecord& f) {
         o += std::string(kind) + "," + csv_field(scene) + "," + csv_field(builder) + "," + csv_field(group) + "," +
              std::to_string(res.width) + "," + std::to_string(res.height) + "," + std::to_string(f.rep) + "," + std::to_string(f.frame) +
-             "," + std::to_string(f.triangles) + "," + json_number(f.build_ms) + "," + json_number(f.trace_ms) + "," +
-             (f.sah ? json_number(*f.sah) : "") + "," + (f.memory_bytes ? std::to_string(*f.memory_bytes) : "") + "," +
+             "," + std::to_string(f.triangles) + "," + csv_number(f.build_ms) + "," + csv_number(f.trace_ms) + "," +
+             (f.sah ? csv_number(*f.sah) : "") + "," + (f.memory_bytes ? std::to_string(*f.memory_bytes) : "") + "," +
              std::to_string(f.hits);
         for (std::size_t k = 0; k < 4; ++k) o += "," + (f.effects ? std::to_string(f.effects->rays[k]) : std::string());
-        for (std::size_t k = 0; k < 4; ++k) o += "," + (f.effects ? json_number(f.effects->ms[k]) : std::string());
-        o += "," + (f.effects ? json_number(f.effects->shade_ms) : std::string()) + "\n";
+        for (std::size_t k = 0; k < 4; ++k) o += "," + (f.effects ? csv_number(f.effects->ms[k]) : std::string());
+        o += "," + (f.effects ? csv_number(f.effects->shade_ms) : std::string()) + "\n";
     };
     for (const auto& g : r.groups)
         for (const auto& f : g.records) row("study", g.scene, g.builder, "", g.res, f);

@@ -4,6 +4,8 @@
 
 #include <string>
 
+#include <nlohmann/json_fwd.hpp>
+
 #include "runner.hpp"
 
 namespace dynbvh::study {
@@ -27,6 +29,10 @@ std::string study_json(const StudyResults& r);
 /// triangles,build_ms,trace_ms,sah,memory_bytes,hits, then rays and ms per kind (primary, shadow, reflection,
 /// refraction) and ms_shade with --effects auto (empty otherwise).
 std::string study_csv(const StudyResults& r);
+
+/// `j` as pretty-printed text (one space per level, fields in insertion order, NaN/inf as null,
+/// invalid UTF-8 replaced), ending in a newline.
+std::string json_text(const nlohmann::ordered_json& j);
 
 /// Writes `text` to `path` (replacing it); throws std::runtime_error naming the file on failure.
 void write_text(const std::string& path, const std::string& text);

@@ -53,6 +53,40 @@ CostLine cost_line(const StudyResults& r, const std::string& scene, const std::s
     return c;
 }
 
+/// Frame time of each line relative to the lowest of all lines at the same ray count, against rays per
+/// frame (log x, linear y from 1 = fastest): on log-log axes of absolute frame time the lines merge where
+/// tracing dominates; as ratios they stay apart and the winner is the line on 1.
+LinePlot relative_frame_plot(const std::string& title, const std::vector<CostLine>& lines, const std::vector<bool>& dashed,
+                             const std::vector<Resolution>& res) {
+    constexpr double cap = 3;   // ratios above are cut at the frame: the interesting part is near 1
+    LinePlot p;
+    p.title = title;
+    p.xlabel = "rays per frame";
+    p.ylabel = "frame time / lowest at that ray count";
+    p.logx = true;
+    for (const auto& x : res) p.xmarks.push_back({double(x.rays()), x.str()});
+    std::vector<double> rays;
+    for (double e = 3; e <= 8.001; e += 0.05) rays.push_back(std::pow(10.0, e));
+    double top = 1;
+    for (std::size_t i = 0; i < lines.size(); ++i) {
+        Series se;
+        se.label = lines[i].label;
+        se.markers = false;
+        se.dashed = i < dashed.size() && dashed[i];
+        for (double n : rays) {
+            const double best = lowest_at(lines, n);
+            const double y = best > 0 ? lines[i].at(n) / best : 1;
+            se.points.push_back({n, y});
+            top = std::max(top, std::min(y, cap));
+        }
+        p.series.push_back(se);
+    }
+    top = std::max(top, 1.05);
+    p.ymin = 1 - 0.03 * (top - 1);
+    p.ymax = top + 0.03 * (top - 1);
+    return p;
+}
+
 std::string resolution_note(const std::vector<Resolution>& res) {
     std::string s = "(";
     for (std::size_t i = 0; i < res.size(); ++i) s += (i ? ", " : "") + res[i].str() + " = " + format_rays(double(res[i].rays()));
@@ -475,26 +509,20 @@ std::string write_report(const StudyResults& r) {
                      s.name + " at " + r.options.resolutions[ri].str() + ": build + trace per builder.");
             }
         }
-        // Frame time against rays per frame (crossovers).
+        // Frame time against rays per frame (crossovers), relative to the fastest at each ray count.
         for (const auto& s : r.scenes) {
-            LinePlot p;
-            p.title = s.name + ": frame time vs rays per frame";
-            p.xlabel = "rays per frame";
-            p.ylabel = "frame time, ms (build + rays x trace cost per ray)";
-            p.logx = p.logy = true;
-            for (const auto& res : r.options.resolutions) p.xmarks.push_back({double(res.rays()), res.str()});
+            std::vector<CostLine> lines;
+            std::vector<bool> dashed;
             for (const auto& b : r.builders) {
                 if (records_all_res(r, s.name, b).empty()) continue;
-                const CostLine c = cost_line(r, s.name, b);
-                Series se;
-                se.label = b;
-                se.markers = false;
-                se.dashed = is_embree_name(b);
-                for (double e = 3; e <= 8.001; e += 0.25) se.points.push_back({std::pow(10.0, e), c.at(std::pow(10.0, e))});
-                p.series.push_back(se);
+                lines.push_back(cost_line(r, s.name, b));
+                dashed.push_back(is_embree_name(b));
             }
-            save("fig_crossover_" + safe_file_name(s.name) + ".svg", svg_line_plot(p),
-                 s.name + ": modelled frame time against rays per frame; the lowest line wins (Embree dashed).");
+            save("fig_crossover_" + safe_file_name(s.name) + ".svg",
+                 svg_line_plot(relative_frame_plot(s.name + ": frame time relative to the fastest builder", lines, dashed,
+                                                   r.options.resolutions)),
+                 s.name + ": modelled frame time (build + rays x trace cost per ray) divided by the lowest of all builders at "
+                          "the same ray count; the builder on 1 wins there (Embree dashed; above 3x cut off).");
         }
         if (const auto fx = effects_tables(r); !fx.empty()) {
             md += "## Effects (--effects auto)\n\n";
@@ -541,24 +569,17 @@ std::string write_report(const StudyResults& r) {
             for (const auto& x : r.sweep)
                 if (x.scene == s.name && std::find(groups.begin(), groups.end(), x.group) == groups.end()) groups.push_back(x.group);
             for (const auto& grp : groups) {
-                LinePlot p;
-                p.title = s.name + ": " + grp;
-                p.xlabel = "rays per frame";
-                p.ylabel = "frame time, ms";
-                p.logx = p.logy = true;
+                std::vector<CostLine> lines;
                 for (const auto& x : r.sweep) {
                     if (x.scene != s.name || x.group != grp) continue;
                     const Summary sm = x.summary();
-                    const CostLine c{x.value, sm.mean_build_ms, sm.mean_trace_ms / double(x.res.rays())};
-                    Series se;
-                    se.label = x.value;
-                    se.markers = false;
-                    for (double e = 3; e <= 8.001; e += 0.25) se.points.push_back({std::pow(10.0, e), c.at(std::pow(10.0, e))});
-                    p.series.push_back(se);
+                    lines.push_back({x.value, sm.mean_build_ms, sm.mean_trace_ms / double(x.res.rays())});
                 }
-                for (const auto& res : r.options.resolutions) p.xmarks.push_back({double(res.rays()), res.str()});
-                save("fig_sweep_" + safe_file_name(s.name) + "_" + safe_file_name(grp) + ".svg", svg_line_plot(p),
-                     s.name + ", " + grp + ": frame time against rays per frame.");
+                save("fig_sweep_" + safe_file_name(s.name) + "_" + safe_file_name(grp) + ".svg",
+                     svg_line_plot(relative_frame_plot(s.name + ": " + grp + ", frame time relative to the fastest", lines, {},
+                                                       r.options.resolutions)),
+                     s.name + ", " + grp + ": modelled frame time divided by the lowest of all settings at the same ray count "
+                                           "(1 = fastest; above 3x cut off).");
             }
             // SAH against trace time for every setting of ours.
             LinePlot q;
@@ -574,10 +595,11 @@ std::string write_report(const StudyResults& r) {
                 se.label = x.group;
                 se.lines = false;
                 se.points.push_back({*sm.mean_sah, sm.mean_trace_ms});
+                se.point_labels.push_back(x.value);
             }
             for (auto& [k, se] : by_group) q.series.push_back(se);
             save("fig_sweep_" + safe_file_name(s.name) + "_sah_vs_trace.svg", svg_line_plot(q),
-                 s.name + ": does a lower SAH trace faster? One point per setting.");
+                 s.name + ": does a lower SAH trace faster? One point per setting, labelled with its value.");
         }
         for (const auto& [file, caption] : figures) md += "![" + caption + "](" + file + ")\n\n*" + caption + "*\n\n";
     }

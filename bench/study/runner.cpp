@@ -10,7 +10,7 @@
 
 #include <dynbvh/io/frames.hpp>
 #include <dynbvh/ray.hpp>
-#include <dynbvh/scenes/builtin.hpp>
+#include <scenes/builtin.hpp>
 
 #include "image.hpp"
 #include "machine.hpp"

@@ -10,7 +10,7 @@
 
 #include <dynbvh/io/scene.hpp>
 
-#include "../render/whitted.hpp"
+#include <render/whitted.hpp>
 #include "backend.hpp"
 #include "builders.hpp"
 #include "options.hpp"

@@ -7,9 +7,12 @@
 
 #include <dynbvh/io/bart.hpp>
 #include <dynbvh/io/frames.hpp>
-#include <dynbvh/scenes/builtin.hpp>
+#include <render/material.hpp>
+#include <scenes/builtin.hpp>
 
-#include "json.hpp"
+#include <nlohmann/json.hpp>
+
+#include "output.hpp"
 
 namespace dynbvh::study {
 
@@ -120,56 +123,40 @@ std::string scene_info_json(OpenedScene& s, std::size_t max_frames) {
         }
         std::swap(prev, f);
     }
-    JsonWriter j(true);
-    j.begin_object();
-    j.kv("spec", s.spec);
-    j.kv("name", s.name);
-    j.kv("kind", s.kind);
-    j.kv("format", s.format);
-    if (s.kind == "builtin") j.kv("scale", s.scale);
-    j.kv("triangles", first_tris);
-    j.kv("triangles_min", n ? tmin : 0);
-    j.kv("triangles_max", tmax);
-    j.kv("non_finite_triangles", non_finite);
-    j.kv("frames", total);
-    j.kv("frames_inspected", n);
-    j.key("bounds");
-    j.begin_object();
-    j.key("min");
-    j.array3(bounds.min.x, bounds.min.y, bounds.min.z);
-    j.key("max");
-    j.array3(bounds.max.x, bounds.max.y, bounds.max.z);
-    j.end_object();
-    j.kv("motion", std::string(io::to_string(info.motion)));
-    j.kv("topology_changes", info.topology_changes || count_changed);
-    j.key("mean_vertex_motion_per_frame");
-    if (motion_steps) j.value(motion_sum / double(motion_steps));
-    else j.null();
-    j.kv("objects", objects);
-    j.kv("materials", info.materials.size());
-    j.kv("lights", info.lights.size());
+    using Json = nlohmann::ordered_json;
+    auto vec3 = [](const auto& v) { return Json::array({v.x, v.y, v.z}); };
+    Json j;
+    j["spec"] = s.spec;
+    j["name"] = s.name;
+    j["kind"] = s.kind;
+    j["format"] = s.format;
+    if (s.kind == "builtin") j["scale"] = s.scale;
+    j["triangles"] = first_tris;
+    j["triangles_min"] = n ? tmin : 0;
+    j["triangles_max"] = tmax;
+    j["non_finite_triangles"] = non_finite;
+    j["frames"] = total;
+    j["frames_inspected"] = n;
+    j["bounds"] = {{"min", vec3(bounds.min)}, {"max", vec3(bounds.max)}};
+    j["motion"] = std::string(io::to_string(info.motion));
+    j["topology_changes"] = info.topology_changes || count_changed;
+    j["mean_vertex_motion_per_frame"] = motion_steps ? Json(motion_sum / double(motion_steps)) : Json(nullptr);
+    j["objects"] = objects;
+    j["materials"] = info.materials.size();
+    j["lights"] = info.lights.size();
     std::size_t reflective = 0, refractive = 0;
     for (const auto& m : info.materials) {
-        reflective += m.reflects();
-        refractive += m.refracts();
+        reflective += render::reflects(m);
+        refractive += render::refracts(m);
     }
-    j.kv("reflective_materials", reflective);
-    j.kv("refractive_materials", refractive);
+    j["reflective_materials"] = reflective;
+    j["refractive_materials"] = refractive;
     if (n) {
         s.scene->frame(0, f);
-        j.key("camera");
-        j.begin_object();
-        j.key("from");
-        j.array3(f.camera.from.x, f.camera.from.y, f.camera.from.z);
-        j.key("at");
-        j.array3(f.camera.at.x, f.camera.at.y, f.camera.at.z);
-        j.key("up");
-        j.array3(f.camera.up.x, f.camera.up.y, f.camera.up.z);
-        j.kv("fov_y_deg", f.camera.fov_y_deg);
-        j.end_object();
+        j["camera"] = {{"from", vec3(f.camera.from)}, {"at", vec3(f.camera.at)}, {"up", vec3(f.camera.up)},
+                       {"fov_y_deg", f.camera.fov_y_deg}};
     }
-    j.end_object();
-    return j.str();
+    return json_text(j);
 }
 
 } // namespace dynbvh::study

@@ -137,20 +137,66 @@ std::string frame_and_axes(const std::string& title, const std::string& xlabel, 
 }
 
 std::string legend(const std::vector<std::string>& labels, const std::vector<std::string>& colours, const std::vector<int>& style) {
-    // style: 0 = box (bars), 1 = line, 2 = marker only
+    // style: 0 = box (bars), 1 = line, 2 = marker only, 3 = dashed line
     std::string s;
     const double lx = W - R + 14;
     for (std::size_t i = 0; i < labels.size(); ++i) {
         const double ly = T + 8 + 18 * double(i);
         if (style[i] == 2)
             s += "<circle cx=\"" + num(lx + 11) + "\" cy=\"" + num(ly) + "\" r=\"4\" fill=\"" + colours[i] + "\"/>\n";
-        else if (style[i] == 1)
+        else if (style[i] == 1 || style[i] == 3)
             s += "<line x1=\"" + num(lx) + "\" y1=\"" + num(ly) + "\" x2=\"" + num(lx + 22) + "\" y2=\"" + num(ly) + "\" stroke=\"" +
-                 colours[i] + "\" stroke-width=\"2.5\"/>\n";
+                 colours[i] + "\" stroke-width=\"2.5\"" + (style[i] == 3 ? " stroke-dasharray=\"6,4\"" : "") + "/>\n";
         else
             s += "<rect x=\"" + num(lx + 4) + "\" y=\"" + num(ly - 6) + "\" width=\"14\" height=\"12\" fill=\"" + colours[i] + "\"/>\n";
         std::string l = labels[i].size() > 24 ? labels[i].substr(0, 23) + "." : labels[i];
         s += "<text x=\"" + num(lx + 28) + "\" y=\"" + num(ly + 4) + "\">" + esc(l) + "</text>\n";
+    }
+    return s;
+}
+
+struct PointLabel {
+    double px, py;   ///< the point, in pixels
+    std::string text, colour;
+};
+
+/// Labels beside their points inside the frame [x0, x1] x [y1, y0]: each goes right of its point, else
+/// left, moved up or down a line at a time until it covers no marker and no label placed before it;
+/// a thin line joins a moved label to its point.
+std::string place_labels(const std::vector<PointLabel>& labels, double x0, double x1, double y1, double y0) {
+    struct Box {
+        double l, t, r, b;
+        bool overlaps(const Box& o) const { return l < o.r && o.l < r && t < o.b && o.t < b; }
+    };
+    std::vector<Box> taken;
+    for (const auto& l : labels) taken.push_back({l.px - 4, l.py - 4, l.px + 4, l.py + 4});
+    std::string s;
+    const double line = 11;
+    for (const auto& l : labels) {
+        const double w = 5.6 * double(l.text.size()) + 2;
+        bool placed = false;
+        for (int step = 0; step <= 12 && !placed; ++step)
+            for (int sign : {-1, 1}) {
+                if (placed || (step == 0 && sign == 1)) continue;
+                for (bool right : {true, false}) {
+                    const double x = right ? l.px + 5 : l.px - 5 - w, base = l.py - 3 + sign * step * line;
+                    const Box b{x, base - 9, x + w, base + 2};
+                    if (placed || b.l < x0 || b.r > x1 || b.t < y1 || b.b > y0) continue;
+                    bool free = true;
+                    for (const auto& o : taken) free = free && !b.overlaps(o);
+                    if (!free) continue;
+                    taken.push_back(b);
+                    placed = true;
+                    if (step > 1)
+                        s += "<line x1=\"" + num(l.px) + "\" y1=\"" + num(l.py) + "\" x2=\"" + num(right ? b.l : b.r) + "\" y2=\"" +
+                             num(base - 4) + "\" stroke=\"" + l.colour + "\" stroke-width=\"0.5\"/>\n";
+                    s += "<text x=\"" + num(x + 1) + "\" y=\"" + num(base) + "\" font-size=\"10\" fill=\"" + l.colour + "\">" +
+                         esc(l.text) + "</text>\n";
+                }
+            }
+        if (!placed)   // crowded beyond the search: next to the point anyway
+            s += "<text x=\"" + num(l.px + 5) + "\" y=\"" + num(l.py - 5) + "\" font-size=\"10\" fill=\"" + l.colour + "\">" +
+                 esc(l.text) + "</text>\n";
     }
     return s;
 }
@@ -168,9 +214,15 @@ std::string svg_line_plot(const LinePlot& p) {
             yhi = std::max(yhi, y);
         }
     const Axis xa = make_axis(xlo, xhi, p.logx, false);
-    const Axis ya = make_axis(ylo, yhi, p.logy, true);
+    Axis ya = make_axis(ylo, yhi, p.logy, true);
+    const bool fixed_y = !p.logy && p.ymin < p.ymax;
+    if (fixed_y) ya = Axis{p.ymin, p.ymax, false};
     std::string s = frame_and_axes(p.title, p.xlabel, p.ylabel, ya, &xa);
     const double x0 = L, x1 = W - R, y0 = H - B, y1 = T;
+    // Lines and markers outside a fixed y range are cut at the frame.
+    if (fixed_y)
+        s += "<clipPath id=\"frame\"><rect x=\"" + num(x0) + "\" y=\"" + num(y1) + "\" width=\"" + num(x1 - x0) + "\" height=\"" +
+             num(y0 - y1) + "\"/></clipPath>\n<g clip-path=\"url(#frame)\">\n";
     for (const auto& [xv, label] : p.xmarks) {
         if (!(xv >= xa.lo && xv <= xa.hi)) continue;
         const double px = xa.map(xv, x0, x1);
@@ -180,12 +232,13 @@ std::string svg_line_plot(const LinePlot& p) {
     }
     std::vector<std::string> labels, colours;
     std::vector<int> styles;
+    std::vector<PointLabel> point_labels;
     for (std::size_t i = 0; i < p.series.size(); ++i) {
         const auto& se = p.series[i];
         const std::string c = colour(i);
         labels.push_back(se.label);
         colours.push_back(c);
-        styles.push_back(se.lines ? 1 : 2);
+        styles.push_back(se.lines ? (se.dashed ? 3 : 1) : 2);
         std::string path;
         for (const auto& [x, y] : se.points) {
             if (!std::isfinite(x) || !std::isfinite(y) || (p.logx && x <= 0) || (p.logy && y <= 0)) continue;
@@ -194,12 +247,16 @@ std::string svg_line_plot(const LinePlot& p) {
         if (se.lines && !path.empty())
             s += "<path d=\"" + path + "\" fill=\"none\" stroke=\"" + c + "\" stroke-width=\"2\"" +
                  (se.dashed ? " stroke-dasharray=\"6,4\"" : "") + "/>\n";
-        if (se.markers)
-            for (const auto& [x, y] : se.points) {
-                if (!std::isfinite(x) || !std::isfinite(y) || (p.logx && x <= 0) || (p.logy && y <= 0)) continue;
-                s += "<circle cx=\"" + num(xa.map(x, x0, x1)) + "\" cy=\"" + num(ya.map(y, y0, y1)) + "\" r=\"3.5\" fill=\"" + c + "\"/>\n";
-            }
+        for (std::size_t k = 0; k < se.points.size(); ++k) {
+            const auto [x, y] = se.points[k];
+            if (!std::isfinite(x) || !std::isfinite(y) || (p.logx && x <= 0) || (p.logy && y <= 0)) continue;
+            const double px = xa.map(x, x0, x1), py = ya.map(y, y0, y1);
+            if (se.markers) s += "<circle cx=\"" + num(px) + "\" cy=\"" + num(py) + "\" r=\"3.5\" fill=\"" + c + "\"/>\n";
+            if (k < se.point_labels.size() && !se.point_labels[k].empty()) point_labels.push_back({px, py, se.point_labels[k], c});
+        }
     }
+    if (fixed_y) s += "</g>\n";
+    s += place_labels(point_labels, x0, x1, y1, y0);
     s += legend(labels, colours, styles);
     return s + "</svg>\n";
 }

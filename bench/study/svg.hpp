@@ -2,6 +2,7 @@
 // and grouped bar charts whose bars may be stacked from several components.
 #pragma once
 
+#include <cmath>
 #include <string>
 #include <utility>
 #include <vector>
@@ -14,6 +15,7 @@ struct Series {
     bool lines = true;
     bool markers = true;
     bool dashed = false;
+    std::vector<std::string> point_labels;   ///< text beside each point, in the order of `points`; empty: none
 };
 
 struct LinePlot {
@@ -21,6 +23,7 @@ struct LinePlot {
     bool logx = false, logy = false;
     std::vector<Series> series;
     std::vector<std::pair<double, std::string>> xmarks;   ///< vertical reference lines (e.g. resolutions)
+    double ymin = std::nan(""), ymax = std::nan("");      ///< fixed linear y range (NaN: from the data); lines are clipped to it
 };
 
 struct BarPlot {

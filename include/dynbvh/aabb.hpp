@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 /// @file aabb.hpp
 /// Axis-aligned bounding box. The empty box has min = +inf and max = -inf so that
 /// extending it by anything yields that thing; its area is 0.

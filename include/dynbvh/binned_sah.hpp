@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 /// @file binned_sah.hpp
 /// Top-down binned SAH builder: Wald 2007, "On fast Construction of SAH-based Bounding Volume
 /// Hierarchies" (IEEE RT). Every node bins its references' centres into `bins` equal slots per axis
@@ -15,6 +16,7 @@
 #pragma once
 
 #include <algorithm>
+#include <array>
 #include <bit>
 #include <cstdint>
 #include <limits>
@@ -24,9 +26,9 @@
 #include <vector>
 
 #include "bvh.hpp"
-#include "collapse.hpp"
+#include "detail/emit.hpp"
 #include "executor.hpp"
-#include "references.hpp"
+#include "detail/references.hpp"
 
 namespace dynbvh::binned_sah {
 
@@ -220,6 +222,32 @@ inline std::uint32_t balanced_height(std::size_t n) noexcept {
     return n <= 1 ? 0u : static_cast<std::uint32_t>(std::bit_width(n - 1));
 }
 
+/// Makes raw node `id` the child of `r`'s parent (or the root).
+inline void link(BinaryTree& tree, const Range& r, std::uint32_t id) noexcept {
+    if (r.parent == BinaryTree::leaf_flag) tree.root = id;
+    else (r.side == 0 ? tree.left : tree.right)[r.parent] = id;
+}
+
+/// Whether a split of `n` references at `r` may follow the SAH: a median split below keeps the
+/// subtree within max_depth.
+inline bool sah_allowed(const Range& r, std::size_t n) noexcept { return r.depth + balanced_height(n) < max_depth; }
+
+/// The split step the serial and the data-parallel builder share: inner node `id` over `r` is linked
+/// to its parent; `find(it, n)` partitions the range's n items and returns how many go left (0 or n:
+/// no useful split, and the median along the centroid bounds `cb` is used). Returns the children's
+/// ranges, left first.
+template <class T, class Find>
+std::array<Range, 2> split_range(BinaryTree& tree, Item<T>* items, const Range& r, std::uint32_t id, const AABB<T>& cb,
+                                 Find&& find) {
+    link(tree, r, id);
+    Item<T>* it = items + r.begin;
+    const std::size_t n = r.end - r.begin;
+    std::size_t nl = find(it, n);
+    if (nl == 0 || nl == n) nl = median_split(it, n, cb);
+    const auto mid = static_cast<std::uint32_t>(r.begin + nl);
+    return {Range{r.begin, mid, id, 0, r.depth + 1}, Range{mid, r.end, id, 1, r.depth + 1}};
+}
+
 /// Serial builder state for one subtree.
 template <class T>
 struct Worker {
@@ -232,11 +260,6 @@ struct Worker {
 
     Worker(Item<T>* it, BinaryTree& t, std::uint32_t k) : items(it), tree(t), bin_count(k), bins(k) {}
 
-    void link(const Range& r, std::uint32_t id) {
-        if (r.parent == BinaryTree::leaf_flag) tree.root = id;
-        else (r.side == 0 ? tree.left : tree.right)[r.parent] = id;
-    }
-
     /// Builds the subtree over `r`, numbering its inner nodes from `next` on.
     void build(const Range& r0, std::uint32_t next) {
         stack.clear();
@@ -246,32 +269,25 @@ struct Worker {
             stack.pop_back();
             const std::size_t n = r.end - r.begin;
             if (n == 1) {
-                link(r, BinaryTree::leaf(items[r.begin].ref));
+                link(tree, r, BinaryTree::leaf(items[r.begin].ref));
                 continue;
             }
-            const std::uint32_t id = next++;
-            link(r, id);
-            Item<T>* it = items + r.begin;
-            const AABB<T> cb = centroid_bounds(it, n);
-            std::size_t nl = 0;
-            const bool by_sah = n > 2 && r.depth + balanced_height(n) < max_depth;
-            if (by_sah && n <= sweep_limit) {
-                nl = sweep_split(it, n, cb);
-            } else if (by_sah) {
+            const AABB<T> cb = centroid_bounds(items + r.begin, n);
+            const auto [left, right_child] = split_range(tree, items, r, next++, cb, [&](Item<T>* it, std::size_t m) -> std::size_t {
+                if (m <= 2 || !sah_allowed(r, m)) return 0;
+                if (m <= sweep_limit) return sweep_split(it, m, cb);
                 // Fewer bins than references in small nodes: empty bins only cost time.
-                const auto k = static_cast<std::uint32_t>(std::min<std::size_t>(bin_count, n));
+                const auto k = static_cast<std::uint32_t>(std::min<std::size_t>(bin_count, m));
                 const Binner<T> binner(cb, k);
                 bins.reset(k);
-                bin_items(it, n, binner, bins);
+                bin_items(it, m, binner, bins);
                 const Split s = best_split(bins, cb, right);
-                if (s.axis >= 0)
-                    nl = static_cast<std::size_t>(
-                        std::partition(it, it + n, [&](const Item<T>& x) { return binner.bin(x.box.center(), s.axis) < s.bin; }) - it);
-            }
-            if (nl == 0 || nl == n) nl = median_split(it, n, cb);
-            const auto mid = static_cast<std::uint32_t>(r.begin + nl);
-            stack.push_back({mid, r.end, id, 1, r.depth + 1});
-            stack.push_back({r.begin, mid, id, 0, r.depth + 1});
+                if (s.axis < 0) return 0;
+                return static_cast<std::size_t>(
+                    std::partition(it, it + m, [&](const Item<T>& x) { return binner.bin(x.box.center(), s.axis) < s.bin; }) - it);
+            });
+            stack.push_back(right_child);
+            stack.push_back(left);
         }
     }
 };
@@ -286,21 +302,15 @@ BinaryTree build_tree(const References<T>& refs, const Config& cfg, const Exec& 
     if (cfg.bins < 2)
         throw std::invalid_argument("dynbvh::binned_sah: bins must be >= 2, got " + std::to_string(cfg.bins));
     const std::size_t n = refs.size();
-    if (n >= BinaryTree::leaf_flag)
-        throw std::length_error("dynbvh::binned_sah: " + std::to_string(n) + " references exceed the limit of 2^31 - 1");
-    BinaryTree tree;
-    if (n == 0) return tree;
-    if (n == 1) {
-        tree.root = BinaryTree::leaf(0);
-        return tree;
-    }
+    BinaryTree tree = BinaryTree::start(n, "dynbvh::binned_sah");
+    if (n < 2) return tree;
     tree.left.assign(n - 1, 0);
     tree.right.assign(n - 1, 0);
 
     std::vector<Item<T>> items(n);
     ex.for_each(0, n, [&](std::size_t i) { items[i] = {refs.box[i], static_cast<std::uint32_t>(i)}; });
 
-    // Nodes above this size are split data-parallel one at a time, top down; the rest become
+    // Step 1: nodes above this size are split data-parallel one at a time, top down; the rest become
     // independent subtrees. Fixed by n alone, so every executor builds the same tree.
     const std::size_t large = std::max<std::size_t>(4096, n / 128);
     const std::uint32_t k = cfg.bins;
@@ -317,9 +327,6 @@ BinaryTree build_tree(const References<T>& refs, const Config& cfg, const Exec& 
             subtrees.push_back(r);
             continue;
         }
-        const std::uint32_t id = next_id++;
-        if (r.parent == BinaryTree::leaf_flag) tree.root = id;
-        else (r.side == 0 ? tree.left : tree.right)[r.parent] = id;
         Item<T>* it = items.data() + r.begin;
 
         // Blocks of the range; every reduction below is exact (min/max, integer sums), so the
@@ -334,47 +341,46 @@ BinaryTree build_tree(const References<T>& refs, const Config& cfg, const Exec& 
         AABB<T> cb;
         for (const auto& b : cbs) cb.extend(b);
 
-        std::size_t nl = 0;
-        if (r.depth + balanced_height(m) < max_depth) {
+        const auto [left, right_child] = split_range(tree, items.data(), r, next_id++, cb, [&](Item<T>*, std::size_t) -> std::size_t {   // over `it`, m items, in blocks
+            if (!sah_allowed(r, m)) return 0;
             const Binner<T> binner(cb, k);
             std::vector<Bins<T>> part(blocks, Bins<T>(k));
             ex.for_tasks(blocks, [&](std::size_t b) { bin_items(it + lo_of(b), hi_of(b) - lo_of(b), binner, part[b]); });
             for (std::size_t b = 1; b < blocks; ++b) part[0].merge(part[b]);
             const Split s = best_split(part[0], cb, right);
-            if (s.axis >= 0) {
-                // Stable parallel partition: count per block, scan, scatter, copy back.
-                auto goes_left = [&](const Item<T>& x) { return binner.bin(x.box.center(), s.axis) < s.bin; };
-                std::vector<std::size_t> left_count(blocks), left_at(blocks), right_at(blocks);
-                ex.for_tasks(blocks, [&](std::size_t b) {
-                    std::size_t c = 0;
-                    for (std::size_t i = lo_of(b); i < hi_of(b); ++i) c += goes_left(it[i]) ? 1 : 0;
-                    left_count[b] = c;
-                });
-                std::size_t lsum = 0, rsum = 0;
-                for (std::size_t b = 0; b < blocks; ++b) {
-                    left_at[b] = lsum;
-                    right_at[b] = rsum;
-                    lsum += left_count[b];
-                    rsum += (hi_of(b) - lo_of(b)) - left_count[b];
-                }
-                nl = lsum;
-                if (nl > 0 && nl < m) {
-                    scratch.resize(m);
-                    ex.for_tasks(blocks, [&](std::size_t b) {
-                        std::size_t l = left_at[b], rr = nl + right_at[b];
-                        for (std::size_t i = lo_of(b); i < hi_of(b); ++i) scratch[goes_left(it[i]) ? l++ : rr++] = it[i];
-                    });
-                    ex.for_each(0, m, [&](std::size_t i) { it[i] = scratch[i]; }, 4096);
-                }
+            if (s.axis < 0) return 0;
+            // Stable parallel partition: count per block, scan, scatter, copy back.
+            auto goes_left = [&](const Item<T>& x) { return binner.bin(x.box.center(), s.axis) < s.bin; };
+            std::vector<std::size_t> left_count(blocks), left_at(blocks), right_at(blocks);
+            ex.for_tasks(blocks, [&](std::size_t b) {
+                std::size_t c = 0;
+                for (std::size_t i = lo_of(b); i < hi_of(b); ++i) c += goes_left(it[i]) ? 1 : 0;
+                left_count[b] = c;
+            });
+            std::size_t lsum = 0, rsum = 0;
+            for (std::size_t b = 0; b < blocks; ++b) {
+                left_at[b] = lsum;
+                right_at[b] = rsum;
+                lsum += left_count[b];
+                rsum += (hi_of(b) - lo_of(b)) - left_count[b];
             }
-        }
-        if (nl == 0 || nl == m) nl = median_split(it, m, cb);
-        const auto mid = static_cast<std::uint32_t>(r.begin + nl);
-        queue.push_back({r.begin, mid, id, 0, r.depth + 1});
-        queue.push_back({mid, r.end, id, 1, r.depth + 1});
+            const std::size_t nl = lsum;
+            if (nl > 0 && nl < m) {
+                scratch.resize(m);
+                ex.for_tasks(blocks, [&](std::size_t b) {
+                    std::size_t l = left_at[b], rr = nl + right_at[b];
+                    for (std::size_t i = lo_of(b); i < hi_of(b); ++i) scratch[goes_left(it[i]) ? l++ : rr++] = it[i];
+                });
+                ex.for_each(0, m, [&](std::size_t i) { it[i] = scratch[i]; }, 4096);
+            }
+            return nl;
+        });
+        queue.push_back(left);
+        queue.push_back(right_child);
     }
 
-    // Each subtree of s references owns s - 1 consecutive inner node ids.
+    // Step 2: the subtrees, one serial task each; a subtree of s references owns s - 1 consecutive
+    // inner node ids.
     std::vector<std::uint32_t> first(subtrees.size());
     for (std::size_t i = 0; i < subtrees.size(); ++i) {
         first[i] = next_id;
@@ -403,6 +409,13 @@ Bvh<NodeT, Prim> build(std::span<const Triangle<typename NodeT::scalar_type>> tr
     auto refs = make_references(tris, ex);
     const auto tree = build_tree(refs, cfg, ex);
     return emit_bvh<NodeT, Prim>(tree, refs, tris, cfg.leaves, ex);
+}
+
+/// The same for a std::vector of triangles of any scalar, the node type following the triangles:
+/// `dynbvh::binned_sah::build(std::vector<Triangled>{...})` is a Bvh<Node<double>>.
+template <int = 0, class T, class Exec = exec::default_executor>
+Bvh<Node<T>> build(const std::vector<Triangle<T>>& tris, const Config& cfg = {}, const Exec& ex = {}) {
+    return build<Node<T>, prim::indexed, Exec>(std::span<const Triangle<T>>(tris), cfg, ex);
 }
 
 } // namespace dynbvh::binned_sah

@@ -1,8 +1,9 @@
+// SPDX-License-Identifier: MIT
 /// @file executor.hpp
 /// Threading backends as one policy type passed to every builder: `exec::serial`,
 /// `exec::omp` (OpenMP; compile with -fopenmp, or link dynbvh::omp) and `exec::tbb`
 /// (oneTBB; define DYNBVH_WITH_TBB, or link dynbvh::tbb). Algorithms contain no
-/// threading code of their own: they call these five primitives.
+/// threading code of their own: they call these six primitives.
 ///
 ///  - concurrency()                  number of workers
 ///  - for_each(b, e, f(i))           parallel loop
@@ -24,6 +25,8 @@
 
 #if defined(DYNBVH_WITH_TBB)
 #include <memory>
+#include <mutex>
+#include <optional>
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 #include <tbb/parallel_reduce.h>
@@ -156,8 +159,32 @@ struct omp {
 };
 #endif
 
+// A backend that is not compiled in still names a type, so that using it stops at a static_assert
+// that says what to link, instead of "'omp' is not a member of 'dynbvh::exec'".
+namespace detail {
+template <class> inline constexpr bool backend_missing = false;
+} // namespace detail
+#if !defined(_OPENMP)
+struct omp {
+    template <class Backend = void> omp(int = 0) {
+        static_assert(detail::backend_missing<Backend>,
+                      "dynbvh::exec::omp needs OpenMP: link dynbvh::omp (or compile with -fopenmp)");
+    }
+};
+#endif
+#if !defined(DYNBVH_WITH_TBB)
+struct tbb {
+    template <class Backend = void> tbb(int = 0) {
+        static_assert(detail::backend_missing<Backend>,
+                      "dynbvh::exec::tbb needs oneTBB: link dynbvh::tbb (or define DYNBVH_WITH_TBB and link TBB::tbb)");
+    }
+};
+#endif
+
 #if defined(DYNBVH_WITH_TBB)
-/// oneTBB backend. `threads == 0` uses TBB's default arena; otherwise a private arena of that many threads.
+/// oneTBB backend. `threads == 0` uses TBB's default arena; otherwise a private arena of that many threads,
+/// created on first use and shared by copies. One object may be used by several threads at once (builders
+/// take it by const&): the arena is created exactly once (std::call_once).
 struct tbb {
     int threads = 0;
 
@@ -209,16 +236,23 @@ struct tbb {
     }
 
 private:
+    /// The arena, created once; the state itself exists from construction on, so concurrent first
+    /// calls never race on the pointer (only on the once_flag, which is made for that).
+    struct Arena {
+        std::once_flag once;
+        std::optional<::tbb::task_arena> arena;
+    };
     template <class F> void run(F&& f) const {
         if (threads <= 0) { f(); return; }
-        if (!arena_) arena_ = std::make_shared<::tbb::task_arena>(threads);
-        arena_->execute(f);
+        std::call_once(state_->once, [&] { state_->arena.emplace(threads); });
+        state_->arena->execute(f);
     }
-    mutable std::shared_ptr<::tbb::task_arena> arena_;
+    std::shared_ptr<Arena> state_ = std::make_shared<Arena>();
 };
 #endif
 
-/// What every backend offers; builders are constrained on it.
+/// The least a backend offers (a check for backends of your own). Builders take any type with the
+/// six primitives above and are not constrained on this concept.
 template <class E>
 concept Executor = requires(const E& e) {
     { e.concurrency() } -> std::convertible_to<std::size_t>;

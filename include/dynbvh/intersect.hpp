@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 /// @file intersect.hpp
 /// Ray-box and ray-triangle tests as compile-time policies.
 ///
@@ -14,6 +15,15 @@
 ///                                 a ray through a shared edge or vertex never passes between triangles.
 ///  - tri::moller_trumbore         Möller & Trumbore 1997, fast, not watertight.
 ///
+/// Limits (README "Robustness", tests/test_robust_limits.cpp):
+///  - tri::watertight forms vertex - origin in float: a closed solid thinner than about
+///    |origin - object| / 3e7 (half a float ulp of the distance) can be missed; solids at least
+///    max(|origin - object|, |object|) / 1e6 thick are hit through their middle. Use double, or an origin
+///    near the object, beyond that.
+///  - tri::moller_trumbore misses when det = 2 area |dir| cos < 1/FLT_MAX ~ 3e-39 (1/det overflows): with
+///    unit directions, triangles with edges below ~5e-20 (slivers sooner). Edges of 1e-18 seen within
+///    70 degrees of the normal are hit.
+///
 /// All tests treat NaN as "no hit" (comparisons are written so that NaN fails them) and are free of UB
 /// for any input. A prepared ray of a ray that is not `traceable` (NaN or infinite origin or direction,
 /// zero direction, NaN or empty [tmin, tmax]) misses everything; traversal also rejects such rays up front.
@@ -26,34 +36,10 @@
 #include <type_traits>
 #include <utility>
 
+#include "detail/simd.hpp"
 #include "ray.hpp"
 #include "triangle.hpp"
 
-/// Forces inlining of the per-box and per-triangle tests into traversal loops (they are small, and a
-/// call per box costs more than the test).
-/// DYNBVH_NOINLINE keeps rarely taken paths out of those loops.
-#if defined(__GNUC__) || defined(__clang__)
-#if !defined(DYNBVH_ALWAYS_INLINE)
-#define DYNBVH_ALWAYS_INLINE inline __attribute__((always_inline))
-#endif
-#if !defined(DYNBVH_NOINLINE)
-#define DYNBVH_NOINLINE __attribute__((noinline))
-#endif
-#elif defined(_MSC_VER)
-#if !defined(DYNBVH_ALWAYS_INLINE)
-#define DYNBVH_ALWAYS_INLINE __forceinline
-#endif
-#if !defined(DYNBVH_NOINLINE)
-#define DYNBVH_NOINLINE __declspec(noinline)
-#endif
-#else
-#if !defined(DYNBVH_ALWAYS_INLINE)
-#define DYNBVH_ALWAYS_INLINE inline
-#endif
-#if !defined(DYNBVH_NOINLINE)
-#define DYNBVH_NOINLINE
-#endif
-#endif
 
 namespace dynbvh {
 
@@ -282,6 +268,9 @@ namespace tri {
 /// keeps the winding for culling, is left out); edge-on triangles (U + V + W == 0) miss. t, u, v of a
 /// hit come from a second, accurate evaluation in double (see the code); a hit at t = -0 is reported
 /// as +0. Output: t, and (u, v) with p = (1-u-v) p0 + u p1 + v p2 (the Hit convention).
+/// Limit: vertex - origin is rounded to float before the signs are taken, so a closed solid thinner than
+/// about |origin - object| / 3e7 can be missed as a whole (watertightness holds between its triangles,
+/// but the rounded solid may have no area along the ray); see the file comment for the guaranteed side.
 ///
 /// Interface shared by every triangle policy: `prepared<T>(ray)`; `test(p, tri, tmax, t, u, v)`,
 /// true for a hit with t in [ray.tmin, tmax] (t, u, v written only then).
@@ -417,7 +406,9 @@ private:
 };
 
 /// Möller & Trumbore 1997: edge vectors, one determinant, barycentrics by triple products. Fast, but
-/// rays through shared edges and vertices can slip between triangles (see tests/test_intersect.cpp).
+/// rays through shared edges and vertices can slip between triangles (see tests/test_intersect.cpp),
+/// and tiny triangles are missed: once det = 2 area |dir| cos(angle to the normal) < 1/FLT_MAX (~3e-39),
+/// 1/det overflows (unit directions: edges below ~5e-20 are never hit; see the file comment).
 /// Front and back faces both hit; triangles parallel to the ray (det == 0) miss. Same interface as
 /// watertight.
 struct moller_trumbore {

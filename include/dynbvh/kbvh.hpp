@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 /// @file kbvh.hpp
 /// KBVH: presplitting (presplit.hpp, Karras & Aila 2013) followed by a builder over the fragments,
 /// PLOC by default. Large, badly fitting triangles become several tightly boxed references, which
@@ -14,16 +15,17 @@
 #pragma once
 
 #include <span>
+#include <vector>
 #include <utility>
 
 #include "binned_sah.hpp"
 #include "bvh.hpp"
-#include "collapse.hpp"
+#include "detail/emit.hpp"
 #include "executor.hpp"
 #include "lbvh.hpp"
 #include "ploc.hpp"
 #include "presplit.hpp"
-#include "references.hpp"
+#include "detail/references.hpp"
 
 namespace dynbvh::kbvh {
 
@@ -72,6 +74,13 @@ Bvh<NodeT, Prim> build(std::span<const Triangle<typename NodeT::scalar_type>> tr
                        const Exec& ex = {}) {
     auto [refs, tree] = build_tree<Builder>(tris, cfg, ex);
     return emit_bvh<NodeT, Prim>(tree, refs, tris, cfg.builder.leaves, ex);
+}
+
+/// The same for a std::vector of triangles of any scalar, the node type following the triangles:
+/// `dynbvh::kbvh::build(std::vector<Triangled>{...})` is a Bvh<Node<double>>.
+template <int = 0, class T, class Builder = with_ploc, class Exec = exec::default_executor>
+Bvh<Node<T>> build(const std::vector<Triangle<T>>& tris, const Config<Builder>& cfg = {}, const Exec& ex = {}) {
+    return build<Node<T>, prim::indexed, Builder, Exec>(std::span<const Triangle<T>>(tris), cfg, ex);
 }
 
 } // namespace dynbvh::kbvh

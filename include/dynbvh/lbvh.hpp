@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 /// @file lbvh.hpp
 /// LBVH: the linear BVH of Lauterbach et al. 2009 as a binary radix tree over the sorted Morton
 /// codes (Karras 2012, "Maximizing Parallelism in the Construction of BVHs, Octrees, and k-d Trees"),
@@ -5,7 +6,7 @@
 /// leaf walks up, each node knowing its key range [lo, hi]; its parent is the neighbouring node
 /// that shares the longer key prefix (split at hi, or at lo - 1), and the second child to arrive
 /// at a parent carries on. The walk computes each node's box and SAH leaf collapse on the way
-/// (collapse.hpp's CollapseRule), so no separate bottom-up pass is needed before emission.
+/// (detail/emit.hpp's CollapseRule), so no separate bottom-up pass is needed before emission.
 /// Equal codes are told apart by appending the sorted index to the key ("index augmentation"),
 /// so duplicates form a balanced subtree instead of a chain. Inner node ids are split positions
 /// (node p separates sorted references p and p + 1), so a node's id lies between its leaves.
@@ -22,11 +23,11 @@
 #include <vector>
 
 #include "bvh.hpp"
-#include "collapse.hpp"
+#include "detail/emit.hpp"
 #include "executor.hpp"
-#include "morton.hpp"
-#include "references.hpp"
-#include "scratch.hpp"
+#include "detail/morton.hpp"
+#include "detail/references.hpp"
+#include "detail/scratch.hpp"
 
 namespace dynbvh::lbvh {
 
@@ -60,11 +61,8 @@ template <class Key, class T, class Exec>
 BinaryTree radix_tree(std::span<const Key> keys, const References<T>& refs, const CollapseRule<T>& rule,
                       RawNodeInfo<T>* info, const Exec& ex) {
     const std::size_t n = keys.size();
-    BinaryTree tree;
-    if (n == 0) return tree;
-    if (n >= BinaryTree::leaf_flag)
-        throw std::length_error("dynbvh::lbvh: " + std::to_string(n) + " references exceed the limit of 2^31 - 1");
-    if (n == 1) { tree.root = BinaryTree::leaf(0); return tree; }
+    BinaryTree tree = BinaryTree::start(n, "dynbvh::lbvh");
+    if (n < 2) return tree;
     tree.left.resize(n - 1);
     tree.right.resize(n - 1);
     constexpr std::uint32_t none = std::numeric_limits<std::uint32_t>::max();
@@ -84,13 +82,7 @@ BinaryTree radix_tree(std::span<const Key> keys, const References<T>& refs, cons
             const std::uint32_t far = other[p].exchange(left_child ? lo : hi, std::memory_order_acq_rel);
             if (far == none) return;   // the sibling is not finished: it carries on
             (left_child ? hi : lo) = far;
-            if (info) {
-                RawNodeInfo<T> l, r;
-                const std::uint32_t a = tree.left[p], b = tree.right[p];
-                if (BinaryTree::is_leaf(a)) rule.leaf(refs.box[BinaryTree::ref_of(a)], l); else l = info[a];
-                if (BinaryTree::is_leaf(b)) rule.leaf(refs.box[BinaryTree::ref_of(b)], r); else r = info[b];
-                rule.parent(l, r, info[p]);
-            }
+            if (info) rule.node(tree, refs, info, p);
             node = p;
             if (lo == 0 && hi == last) { root = p; return; }
         }
@@ -102,8 +94,9 @@ BinaryTree radix_tree(std::span<const Key> keys, const References<T>& refs, cons
 /// Sorts `refs` along the Morton curve and builds the radix tree (and the node facts, see radix_tree).
 template <class T, class Exec>
 BinaryTree build_tree(References<T>& refs, const Config& cfg, RawNodeInfo<T>* info, const Exec& ex) {
+    morton::check_bits(cfg.morton_bits, "dynbvh::lbvh");
     const CollapseRule<T> rule(cfg.leaves);
-    if (cfg.morton_bits > 30) {
+    if (cfg.morton_bits == 63) {
         const auto keys = morton::sort_references<std::uint64_t>(refs, ex);
         return radix_tree<std::uint64_t>(std::span<const std::uint64_t>(keys), refs, rule, info, ex);
     }
@@ -115,7 +108,7 @@ BinaryTree build_tree(References<T>& refs, const Config& cfg, RawNodeInfo<T>* in
 
 /// Raw LBVH topology over `refs` (see BinaryTree). Reorders `refs` into Morton order; the
 /// tree's leaf ids index the reordered refs. Used by kbvh (presplit + LBVH).
-/// Throws std::length_error beyond 2^31 - 1 references.
+/// Throws std::invalid_argument for morton_bits other than 30 or 63, std::length_error beyond 2^31 - 1 references.
 template <class T, class Exec>
 BinaryTree build_tree(References<T>& refs, const Config& cfg, const Exec& ex) {
     return detail::build_tree(refs, cfg, static_cast<detail::RawNodeInfo<T>*>(nullptr), ex);
@@ -123,7 +116,7 @@ BinaryTree build_tree(References<T>& refs, const Config& cfg, const Exec& ex) {
 
 /// Builds an LBVH over `tris`. One line: `auto bvh = dynbvh::lbvh::build(tris);`
 /// Triangles with NaN/infinite vertices are left out and counted in Bvh::excluded.
-/// @tparam NodeT node layout, @tparam Prim prim::indexed or prim::precomputed, @tparam Exec backend.
+/// @tparam NodeT node layout, @tparam Prim prim::indexed or prim::copied, @tparam Exec backend.
 template <class NodeT = Node<>, class Prim = prim::indexed, class Exec = exec::default_executor>
 Bvh<NodeT, Prim> build(std::span<const Triangle<typename NodeT::scalar_type>> tris, const Config& cfg = {}, const Exec& ex = {}) {
     using T = typename NodeT::scalar_type;
@@ -132,6 +125,13 @@ Bvh<NodeT, Prim> build(std::span<const Triangle<typename NodeT::scalar_type>> tr
     scratch_vector<detail::RawNodeInfo<T>> info(refs.size() > 1 ? refs.size() - 1 : 0);
     const auto tree = detail::build_tree(refs, cfg, info.data(), ex);
     return dynbvh::detail::emit_from_info<NodeT, Prim>(tree, refs, tris, std::span<const detail::RawNodeInfo<T>>(info), ex);
+}
+
+/// The same for a std::vector of triangles of any scalar, the node type following the triangles:
+/// `dynbvh::lbvh::build(std::vector<Triangled>{...})` is a Bvh<Node<double>>.
+template <int = 0, class T, class Exec = exec::default_executor>
+Bvh<Node<T>> build(const std::vector<Triangle<T>>& tris, const Config& cfg = {}, const Exec& ex = {}) {
+    return build<Node<T>, prim::indexed, Exec>(std::span<const Triangle<T>>(tris), cfg, ex);
 }
 
 } // namespace dynbvh::lbvh

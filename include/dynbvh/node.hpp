@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 /// @file node.hpp
 /// The node layout policy. Every builder emits the same layout:
 ///  - the root is node 0;

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 /// @file ploc.hpp
 /// PLOC: Parallel Locally-Ordered Clustering (Meister & Bittner 2018, "Parallel Locally-Ordered
 /// Clustering for Bounding Volume Hierarchy Construction", IEEE TVCG 24(3)).
@@ -31,11 +32,11 @@
 #include <vector>
 
 #include "bvh.hpp"
-#include "collapse.hpp"
+#include "detail/emit.hpp"
 #include "executor.hpp"
-#include "morton.hpp"
-#include "references.hpp"
-#include "scratch.hpp"
+#include "detail/morton.hpp"
+#include "detail/references.hpp"
+#include "detail/scratch.hpp"
 
 namespace dynbvh::ploc {
 
@@ -249,17 +250,9 @@ private:
 /// Throws std::invalid_argument for morton_bits other than 30 or 63, std::length_error beyond 2^31 - 1 refs.
 template <class T, class Exec>
 BinaryTree build_tree(References<T>& refs, const Config& cfg, const Exec& ex) {
-    if (cfg.morton_bits != 30 && cfg.morton_bits != 63)
-        throw std::invalid_argument("dynbvh::ploc: morton_bits must be 30 or 63, got " + std::to_string(cfg.morton_bits));
+    morton::check_bits(cfg.morton_bits, "dynbvh::ploc");
     const std::size_t n = refs.size();
-    if (n >= BinaryTree::leaf_flag)
-        throw std::length_error("dynbvh::ploc: " + std::to_string(n) + " references exceed the limit of 2^31 - 1");
-    BinaryTree tree;
-    if (n == 0) return tree;
-    if (n == 1) {
-        tree.root = BinaryTree::leaf(0);
-        return tree;
-    }
+    if (BinaryTree tree = BinaryTree::start(n, "dynbvh::ploc"); n < 2) return tree;
     // Step 1: clusters = references along the Morton curve.
     if (cfg.morton_bits == 63) morton::sort_references<std::uint64_t>(refs, ex);
     else morton::sort_references<std::uint32_t>(refs, ex);
@@ -275,6 +268,13 @@ Bvh<NodeT, Prim> build(std::span<const Triangle<typename NodeT::scalar_type>> tr
     auto refs = make_references(tris, ex);
     auto tree = build_tree(refs, cfg, ex);
     return emit_bvh<NodeT, Prim>(tree, refs, tris, cfg.leaves, ex);
+}
+
+/// The same for a std::vector of triangles of any scalar, the node type following the triangles:
+/// `dynbvh::ploc::build(std::vector<Triangled>{...})` is a Bvh<Node<double>>.
+template <int = 0, class T, class Exec = exec::default_executor>
+Bvh<Node<T>> build(const std::vector<Triangle<T>>& tris, const Config& cfg = {}, const Exec& ex = {}) {
+    return build<Node<T>, prim::indexed, Exec>(std::span<const Triangle<T>>(tris), cfg, ex);
 }
 
 } // namespace dynbvh::ploc

@@ -1,9 +1,10 @@
+// SPDX-License-Identifier: MIT
 /// @file presplit.hpp
 /// Triangle presplitting: Karras & Aila 2013, "Fast Parallel Construction of High-Quality
 /// Bounding Volume Hierarchies" (HPG), section 5. Before a BVH is built, triangles whose boxes fit
 /// them badly (long, thin, diagonal) are cut into fragments with tight boxes, so the builder sees
 /// small, well-fitting references. A leaf that ends up with two fragments of one triangle tests it
-/// once (emit_bvh in collapse.hpp removes the duplicate).
+/// once (detail::emit_bvh in detail/emit.hpp removes the duplicate).
 ///
 /// The budget is s_max = floor(beta * m) extra fragments for m triangles. Each triangle t gets a
 /// priority p_t = (X^i_t * (A_aabb(t) - A_ideal(t)))^Y with the paper's X = 2, Y = 1/3, where
@@ -37,9 +38,11 @@
 #include <vector>
 
 #include "aabb.hpp"
+#include "cost.hpp"
+#include "detail/polygon.hpp"
 #include "executor.hpp"
-#include "morton.hpp"
-#include "references.hpp"
+#include "detail/morton.hpp"
+#include "detail/references.hpp"
 #include "triangle.hpp"
 
 namespace dynbvh::presplit {
@@ -62,68 +65,8 @@ inline std::size_t budget(std::size_t m, const Config& cfg) {
 
 namespace detail {
 
-/// A convex polygon: a triangle clipped by axis-aligned planes has at most 9 corners; the spare
-/// room absorbs near-duplicate corners from rounding. Corners are left uninitialised until pushed.
-template <class T>
-struct Polygon {
-    static constexpr int capacity = 16;
-    T x[capacity], y[capacity], z[capacity];
-    int n = 0;
-    bool overflow = false;   ///< a corner was dropped (never in exact arithmetic); the box then falls back
-    bool rounded[3] = {false, false, false};   ///< a crossing point's coordinate on this axis was rounded
-
-    Vec3<T> operator[](int k) const noexcept { return {x[k], y[k], z[k]}; }
-    T coord(int k, int axis) const noexcept { return axis == 0 ? x[k] : (axis == 1 ? y[k] : z[k]); }
-    void push(const Vec3<T>& p) noexcept {
-        if (n > 0 && x[n - 1] == p.x && y[n - 1] == p.y && z[n - 1] == p.z) return;
-        if (n == capacity) { overflow = true; return; }
-        x[n] = p.x;
-        y[n] = p.y;
-        z[n] = p.z;
-        ++n;
-    }
-    /// Drops a last corner equal to the first (the closing edge).
-    void close() noexcept {
-        if (n > 1 && x[n - 1] == x[0] && y[n - 1] == y[0] && z[n - 1] == z[0]) --n;
-    }
-    AABB<T> bounds() const noexcept {
-        AABB<T> b;
-        for (int k = 0; k < n; ++k) b.extend((*this)[k]);
-        return b;
-    }
-};
-
-/// Splits `in` by the plane x[axis] = pos into the part below (`lo`) and above (`hi`). Corners on the
-/// plane go to both; each crossing point is computed once and given to both, with x[axis] = pos exactly.
-template <class T>
-void split_polygon(const Polygon<T>& in, int axis, T pos, Polygon<T>& lo, Polygon<T>& hi) noexcept {
-    lo.n = hi.n = 0;
-    lo.overflow = hi.overflow = in.overflow;
-    for (std::size_t c = 0; c < 3; ++c) lo.rounded[c] = hi.rounded[c] = in.rounded[c];
-    for (int k = 0; k < in.n; ++k) {
-        const int k1 = k + 1 == in.n ? 0 : k + 1;
-        const Vec3<T> a = in[k];
-        const T da = in.coord(k, axis) - pos, db = in.coord(k1, axis) - pos;
-        if (da <= T(0)) lo.push(a);
-        if (da >= T(0)) hi.push(a);
-        if ((da < T(0) && db > T(0)) || (da > T(0) && db < T(0))) {
-            const T t = da / (da - db);
-            Vec3<T> p = a + (in[k1] - a) * t;
-            p[axis] = pos;
-            // Where the same crossing in long double differs, the exact one may lie outside the
-            // corners' box: conservative_bounds() then widens that axis.
-            const long double tl = (static_cast<long double>(in.coord(k, axis)) - pos) /
-                                   (static_cast<long double>(in.coord(k, axis)) - in.coord(k1, axis));
-            for (std::size_t c = 0; c < 3; ++c)
-                if (c != std::size_t(axis) && static_cast<long double>(p[c]) != a[c] + (static_cast<long double>(in[k1][c]) - a[c]) * tl)
-                    lo.rounded[c] = hi.rounded[c] = true;
-            lo.push(p);
-            hi.push(p);
-        }
-    }
-    lo.close();
-    hi.close();
-}
+using dynbvh::detail::Polygon;
+using dynbvh::detail::split_polygon;
 
 /// A_ideal of a planar polygon: 2 * (|yz| + |zx| + |xy| projected areas), in double.
 template <class T>
@@ -140,15 +83,6 @@ double ideal_area(const Polygon<T>& poly) noexcept {
     }
     // Each sum is twice a projected area; the box area counts every face twice: 2 * 0.5 * |s|.
     return std::abs(sx) + std::abs(sy) + std::abs(sz);
-}
-
-/// Surface area of a box in double (0 for an empty box).
-template <class T>
-double aabb_area(const AABB<T>& b) noexcept {
-    if (b.is_empty()) return 0.0;
-    const double dx = double(b.max.x) - double(b.min.x), dy = double(b.max.y) - double(b.min.y),
-                 dz = double(b.max.z) - double(b.min.z);
-    return 2.0 * (dx * dy + dy * dz + dz * dx);
 }
 
 /// Grid cells holding a box's lower and upper face on axis a. An upper face lying exactly on a grid
@@ -278,7 +212,7 @@ template <class T>
 double priority(const AABB<T>& box, double ideal, const morton::Quantizer<T>& q) noexcept {
     const int i = importance(box, q);
     if (i < 0) return 0.0;
-    const double surplus = aabb_area(box) - ideal;
+    const double surplus = dynbvh::detail::area(box) - ideal;
     if (!(surplus > 0.0) || !std::isfinite(surplus)) return 0.0;
     return std::cbrt(surplus * static_cast<double>(std::uint64_t(1) << i));   // X = 2, Y = 1/3
 }

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 /// @file ray.hpp
 /// Ray and hit records used by traversal.
 #pragma once

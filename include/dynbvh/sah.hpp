@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 /// @file sah.hpp
 /// Tree quality metrics, for comparing builders on the same scene:
 ///  - `sah_cost`: the surface area heuristic cost of a finished tree (the study's definition),
@@ -14,25 +15,17 @@
 #include <vector>
 
 #include "bvh.hpp"
+#include "cost.hpp"
+#include "detail/polygon.hpp"
+#include "detail/check_triangles.hpp"
 #include "executor.hpp"
 
 namespace dynbvh {
 
-/// Costs of the SAH and EPO: Ct per inner node visited, Ci per primitive intersected.
-/// Defaults are the study's (Ct = 3, Ci = 2, after the PLOC paper).
-struct SahConfig {
-    double ct = 3;  ///< traversal cost of an inner node
-    double ci = 2;  ///< intersection cost of one reference in a leaf
-};
+template <class WideNodeT, class PrimPolicy>
+struct WideBvh;   // wide.hpp
 
 namespace detail {
-template <class S>
-inline double box_area(const Vec3<S>& lo, const Vec3<S>& hi) noexcept {
-    if (!(lo.x <= hi.x && lo.y <= hi.y && lo.z <= hi.z)) return 0.0;
-    const double dx = double(hi.x) - double(lo.x), dy = double(hi.y) - double(lo.y), dz = double(hi.z) - double(lo.z);
-    return 2.0 * (dx * dy + dy * dz + dz * dx);
-}
-
 struct SahSums {
     double inner = 0, leaf = 0;   // sum SA(n) over inner nodes; sum SA(l) * count(l) over leaves
     double inner_n = 0, refs = 0; // number of inner nodes; number of references
@@ -40,6 +33,19 @@ struct SahSums {
         return {a.inner + b.inner, a.leaf + b.leaf, a.inner_n + b.inner_n, a.refs + b.refs};
     }
 };
+
+/// The SAH formula over `nodes` (binary or wide): per_node(node)'s sums added up in parallel, divided
+/// by the root's area (or its limit for a degenerate root, see sah_cost(Bvh)). 0 for no nodes.
+template <class Nodes, class Exec, class PerNode>
+double sah_of(const Nodes& nodes, const SahCost& cfg, const Exec& ex, const PerNode& per_node) {
+    if (nodes.empty()) return 0.0;
+    const SahSums s = ex.reduce(
+        std::size_t(0), nodes.size(), SahSums{}, [&](std::size_t i) { return per_node(nodes[i]); },
+        [](const SahSums& a, const SahSums& b) { return SahSums::combine(a, b); });
+    const double root = area(nodes[0].bounds());
+    if (!(root > 0)) return cfg.ct * s.inner_n + cfg.ci * s.refs;
+    return (cfg.ct * s.inner + cfg.ci * s.leaf) / root;
+}
 } // namespace detail
 
 /// SAH cost = (1 / SA(root)) * (Ct * sum over inner nodes SA(n) + Ci * sum over leaves SA(l) * count(l)),
@@ -47,67 +53,59 @@ struct SahSums {
 /// `bvh.nodes` counts (a valid tree has no unreachable nodes). An empty tree costs 0. When the root's
 /// area is 0 (all geometry on one line or at one point) every box is the root's degenerate box and
 /// the limit of the formula is used: Ct * inner nodes + Ci * references. O(nodes), parallel over `ex`.
-template <class NodeT, class Prim, class Exec = exec::serial>
-double sah_cost(const Bvh<NodeT, Prim>& bvh, const SahConfig& cfg = {}, const Exec& ex = {}) {
-    if (bvh.nodes.empty()) return 0.0;
-    const auto& nodes = bvh.nodes;
-    const detail::SahSums s = ex.reduce(
-        std::size_t(0), nodes.size(), detail::SahSums{},
-        [&](std::size_t i) {
-            const NodeT& n = nodes[i];
-            const double a = detail::box_area(n.min, n.max);
-            detail::SahSums r;
-            if (n.is_leaf()) {
-                r.leaf = a * double(n.count);
-                r.refs = double(n.count);
-            } else {
-                r.inner = a;
-                r.inner_n = 1;
-            }
-            return r;
-        },
-        [](const detail::SahSums& a, const detail::SahSums& b) { return detail::SahSums::combine(a, b); });
-    const double root = detail::box_area(nodes[0].min, nodes[0].max);
-    if (!(root > 0)) return cfg.ct * s.inner_n + cfg.ci * s.refs;
-    return (cfg.ct * s.inner + cfg.ci * s.leaf) / root;
+template <class NodeT, class Prim, class Exec = exec::default_executor>
+double sah_cost(const Bvh<NodeT, Prim>& bvh, const SahCost& cfg = {}, const Exec& ex = {}) {
+    return detail::sah_of(bvh.nodes, cfg, ex, [](const NodeT& n) {
+        const double a = detail::area(n.bounds());
+        detail::SahSums r;
+        if (n.is_leaf()) {
+            r.leaf = a * double(n.count);
+            r.refs = double(n.count);
+        } else {
+            r.inner = a;
+            r.inner_n = 1;
+        }
+        return r;
+    });
+}
+
+/// SAH cost of a wide tree, the binary definition (sah.hpp) with wide nodes as inner nodes:
+/// (1 / SA(root)) * (Ct * sum over wide nodes SA(node) + Ci * sum over leaves SA(l) * count(l)),
+/// where SA(node) is the area of the union of its children's boxes (one visit tests all of them).
+/// The leaf term equals the binary tree's; the inner term sums a subset of its inner nodes.
+/// Degenerate roots as in sah_cost(Bvh). O(nodes), parallel over `ex`.
+template <class WN, class P, class Exec = exec::default_executor>
+double sah_cost(const WideBvh<WN, P>& wide, const SahCost& cfg = {}, const Exec& ex = {}) {
+    return detail::sah_of(wide.nodes, cfg, ex, [](const WN& n) {
+        detail::SahSums r;
+        r.inner = detail::area(n.bounds());
+        r.inner_n = 1;
+        for (int k = 0; k < WN::width; ++k) {
+            if (n.empty_slot(k) || !n.is_leaf(k)) continue;
+            r.leaf += detail::area(n.bounds(k)) * double(n.count[k]);
+            r.refs += double(n.count[k]);
+        }
+        return r;
+    });
 }
 
 namespace detail {
 
-/// Area of the part of triangle (a, b, c) inside the closed box [lo, hi]: Sutherland–Hodgman clipping
-/// against the six planes, in double. Exact up to double rounding.
+/// Area of the part of triangle (a, b, c) inside the closed box [lo, hi]: the triangle clipped
+/// against the six planes (detail/polygon.hpp), in double. Exact up to double rounding.
 inline double clipped_triangle_area(const Vec3d& a, const Vec3d& b, const Vec3d& c, const Vec3d& lo, const Vec3d& hi) {
-    Vec3d buf0[9], buf1[9];
-    Vec3d* in = buf0;
-    Vec3d* out = buf1;
-    int n = 3;
-    in[0] = a;
-    in[1] = b;
-    in[2] = c;
-    for (int plane = 0; plane < 6 && n > 0; ++plane) {
-        const std::size_t axis = std::size_t(plane >> 1);
-        const bool upper = (plane & 1) != 0;
-        const double bound = upper ? hi[axis] : lo[axis];
-        auto inside = [&](const Vec3d& p) { return upper ? p[axis] <= bound : p[axis] >= bound; };
-        int m = 0;
-        for (int i = 0; i < n; ++i) {
-            const Vec3d& p = in[i];
-            const Vec3d& q = in[(i + 1) % n];
-            const bool pin = inside(p), qin = inside(q);
-            if (pin) out[m++] = p;
-            if (pin != qin) {
-                const double s = (bound - p[axis]) / (q[axis] - p[axis]);
-                Vec3d x = p + (q - p) * s;
-                x[axis] = bound;
-                out[m++] = x;
-            }
-        }
-        n = m;
-        std::swap(in, out);
+    Polygon<double> poly, below, above;
+    poly.push(a);
+    poly.push(b);
+    poly.push(c);
+    poly.close();
+    for (int axis = 0; axis < 3 && poly.n >= 3; ++axis) {
+        split_polygon(poly, axis, lo[std::size_t(axis)], below, above);   // keep x[axis] >= lo
+        split_polygon(above, axis, hi[std::size_t(axis)], poly, below);   // keep x[axis] <= hi
     }
-    if (n < 3) return 0.0;
+    if (poly.n < 3) return 0.0;
     Vec3d sum{};
-    for (int i = 1; i + 1 < n; ++i) sum += cross(in[i] - in[0], in[i + 1] - in[0]);
+    for (int i = 1; i + 1 < poly.n; ++i) sum += cross(poly[i] - poly[0], poly[i + 1] - poly[0]);
     return 0.5 * length(sum);
 }
 
@@ -124,10 +122,12 @@ inline double clipped_triangle_area(const Vec3d& a, const Vec3d& b, const Vec3d&
 /// Cost: for each triangle, a descent from the root into every node whose box overlaps the
 /// triangle's box — O(n log n) for well-separated trees, up to O(n * nodes) for pathological overlap;
 /// parallel over triangles with `ex`. Returns 0 for an empty tree or a scene of zero area.
-template <class NodeT, class Prim, class Exec = exec::serial>
+/// `tris` must be the array the tree was built over (else std::invalid_argument).
+template <class NodeT, class Prim, class Exec = exec::default_executor>
 double epo(const Bvh<NodeT, Prim>& bvh, std::span<const Triangle<typename NodeT::scalar_type>> tris,
-           const SahConfig& cfg = {}, const Exec& ex = {}) {
+           const SahCost& cfg = {}, const Exec& ex = {}) {
     using Index = typename NodeT::index_type;
+    detail::check_triangles(bvh, tris.size(), "epo");
     const auto& nodes = bvh.nodes;
     if (nodes.empty() || tris.empty()) return 0.0;
 

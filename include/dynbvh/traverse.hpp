@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 /// @file traverse.hpp
 /// Closest-hit and any-hit queries of one ray against any `Bvh`, with the box and triangle tests
 /// chosen at compile time:
@@ -32,6 +33,7 @@
 #include <vector>
 
 #include "bvh.hpp"
+#include "detail/check_triangles.hpp"
 #include "intersect.hpp"
 
 namespace dynbvh {
@@ -57,19 +59,8 @@ struct StackEntry {
     T tentry;  ///< entry distance of the node's box, to skip it once a closer hit is known
 };
 
-/// Throws when `given` triangles cannot be the array a tree (binary or wide) indexing the user's
-/// triangles was built over.
-template <class Tree>
-void check_triangles(const Tree& bvh, std::size_t given, const char* fn) {
-    if constexpr (!Tree::precomputed) {
-        if (given < bvh.primitive_count)
-            throw std::invalid_argument(std::string("dynbvh::") + fn + ": the triangle span has " + std::to_string(given) +
-                                        " triangles but the BVH was built over " + std::to_string(bvh.primitive_count));
-    }
-}
-
 /// Tests the triangles of leaf slots [first, end) (slot i is triangle ids[i], or leaf_tris[i] for
-/// precomputed trees). Each hit narrows tmax and tbox = tmax * t_scale (the box tests' units) and is
+/// prim::copied trees). Each hit narrows tmax and tbox = tmax * t_scale (the box tests' units) and is
 /// kept in `hit`/`best_slot`; with AnyHit the first hit sets hit.prim and returns true (stop).
 /// Shared by the binary and the wide traversal (wide.hpp).
 template <class Tri, bool AnyHit, bool Precomputed, class T, class Index>
@@ -94,6 +85,35 @@ DYNBVH_ALWAYS_INLINE bool test_leaf(const typename Tri::template prepared<T>& pt
         }
     }
     return false;
+}
+
+/// Pops stack entries until one whose box can still hold a hit closer than `tbox` (box units) and
+/// stores it in `next`; false when the stack is empty (the traversal is done). Shared by the binary
+/// and the wide traversal loop.
+template <class Box, class Entry, class T>
+DYNBVH_ALWAYS_INLINE bool pop_closer(const Entry* stack, std::size_t& sp, T tbox, Entry& next) noexcept {
+    while (sp != 0) {
+        next = stack[--sp];
+        if (Box::before(next.tentry, tbox)) return true;
+    }
+    return false;
+}
+
+/// Runs `run(stack, cap, hit)`, a traversal that returns false when its stack of `cap` entries would
+/// overflow: on a fixed stack of FixedCap entries when `fits`; else, or after an overflow (a tree whose
+/// `depth` field is wrong), on a heap stack of `heap_entries`, which the caller sizes so that no
+/// traversal can overflow it. Shared by the binary and the wide traversal.
+template <class Entry, std::size_t FixedCap, class T, class Run>
+DYNBVH_ALWAYS_INLINE Hit<T> run_with_stack(bool fits, std::size_t heap_entries, Run&& run) {
+    if (fits) {
+        Entry stack[FixedCap];
+        Hit<T> hit;
+        if (run(stack, FixedCap, hit)) [[likely]] return hit;
+    }
+    std::vector<Entry> heap(heap_entries);
+    Hit<T> hit;
+    run(heap.data(), heap.size(), hit);
+    return hit;
 }
 
 /// The one traversal loop, for one ray direction octant `Oct` (box tests without run-time sign
@@ -147,17 +167,12 @@ bool traverse_octant(const Bvh<NodeT, Prim>& bvh, std::span<const Triangle<typen
                 return true;
         }
         // Pop the next subtree that can still hold a closer hit.
-        for (;;) {
-            if (sp == 0) {
-                if (best_slot != ~std::size_t(0)) hit.prim = static_cast<std::uint32_t>(ids[best_slot]);
-                return true;
-            }
-            const StackEntry<Index, T> e = stack[--sp];
-            if (Box::before(e.tentry, tbox)) {
-                cur = e.node;
-                break;
-            }
+        StackEntry<Index, T> next;
+        if (!pop_closer<Box>(stack, sp, tbox, next)) {
+            if (best_slot != ~std::size_t(0)) hit.prim = static_cast<std::uint32_t>(ids[best_slot]);
+            return true;
         }
+        cur = next.node;
     }
 }
 
@@ -182,31 +197,23 @@ Hit<typename NodeT::scalar_type> traverse(const Bvh<NodeT, Prim>& bvh,
             return traverse_octant<Policy, AnyHit, decltype(oct)::value>(bvh, tris, pb, pt, ray.tmax, hit, stack, cap);
         });
     };
-    if (bvh.depth <= max_depth) {
-        Entry stack[max_depth];
-        Hit<T> hit;
-        if (run(stack, max_depth, hit)) [[likely]] return hit;
-    }
-    // A tree deeper than max_depth (or one whose depth field is wrong): a heap stack as large as the
-    // tree, which no traversal can overflow (each node is pushed at most once).
-    std::vector<Entry> heap(bvh.nodes.size());
-    Hit<T> hit;
-    run(heap.data(), heap.size(), hit);
-    return hit;
+    // One entry per level; a deeper tree gets a heap stack as large as the tree (each node is pushed
+    // at most once).
+    return run_with_stack<Entry, max_depth, T>(bvh.depth <= max_depth, bvh.nodes.size(), run);
 }
 
 } // namespace detail
 
 /// Closest hit of `ray` in `bvh` with t in [ray.tmin, ray.tmax]: t, barycentrics (u, v) and the user's
 /// triangle index (`Hit::prim`, never a leaf slot or fragment); no hit when `prim == invalid_prim`
-/// (`if (hit)`). `tris` is the array the BVH was built over (unused for prim::precomputed; for
-/// prim::indexed a span shorter than `bvh.primitive_count` throws std::invalid_argument).
+/// (`if (hit)`). `tris` is the array the BVH was built over (unused for prim::copied; for
+/// prim::indexed a span whose size is not `bvh.primitive_count` throws std::invalid_argument).
 /// Cost: O(visited nodes); no allocation unless `bvh.depth > max_depth`.
 template <class Policy = trace::robust, class NodeT, class Prim>
 Hit<typename NodeT::scalar_type> intersect(const Bvh<NodeT, Prim>& bvh,
                                            std::span<const Triangle<typename NodeT::scalar_type>> tris,
                                            const Ray<typename NodeT::scalar_type>& ray) {
-    detail::check_triangles(bvh, tris.size(), "intersect");
+    detail::check_triangles(bvh, tris.size(), "intersect", !Bvh<NodeT, Prim>::precomputed);
     return detail::traverse<Policy, false>(bvh, tris, ray);
 }
 
@@ -214,7 +221,7 @@ Hit<typename NodeT::scalar_type> intersect(const Bvh<NodeT, Prim>& bvh,
 template <class Policy = trace::robust, class NodeT, class Prim>
 bool occluded(const Bvh<NodeT, Prim>& bvh, std::span<const Triangle<typename NodeT::scalar_type>> tris,
               const Ray<typename NodeT::scalar_type>& ray) {
-    detail::check_triangles(bvh, tris.size(), "occluded");
+    detail::check_triangles(bvh, tris.size(), "occluded", !Bvh<NodeT, Prim>::precomputed);
     return static_cast<bool>(detail::traverse<Policy, true>(bvh, tris, ray));
 }
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 /// @file triangle.hpp
 /// The triangle the library builds over, and the helpers that turn the user's
 /// triangles into the per-primitive boxes and centroids every builder starts from.

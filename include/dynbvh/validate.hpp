@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 /// @file validate.hpp
 /// Structural check of a finished `Bvh` against the triangles it was built over. Every builder test
 /// runs it; users can run it on trees they build or modify themselves. The report says in words what
@@ -17,6 +18,7 @@
 #include <vector>
 
 #include "bvh.hpp"
+#include "detail/check_triangles.hpp"
 
 namespace dynbvh {
 
@@ -56,7 +58,7 @@ struct ValidationReport {
 };
 
 /// Checks, reporting every failure:
-///  - bookkeeping: `primitive_count == tris.size()`, `excluded` == number of non-finite triangles;
+///  - bookkeeping: `primitive_count == tris.size()` (the message refit/intersect throw), `excluded` == number of non-finite triangles;
 ///    an empty tree only when no triangle is finite (and then no references);
 ///  - topology: root at 0; every inner node's children `index`, `index + 1` in range; every node reached
 ///    exactly once from the root (no sharing, no cycles, no unreachable nodes); every leaf's range
@@ -70,7 +72,7 @@ struct ValidationReport {
 ///    in the box of some leaf referencing it (exact), and its edge midpoints and centroid too (within a
 ///    few ulps of the triangle's coordinates), i.e. the fragments cover the triangle;
 ///  - depth: measured depth == `bvh.depth` and <= `max_depth`;
-///  - prim::precomputed: `leaf_triangles[slot] == tris[prim_ids[slot]]` for every slot.
+///  - prim::copied: `leaf_triangles[slot] == tris[prim_ids[slot]]` for every slot.
 /// Cost: O(nodes + references + triangles) time and memory, serial.
 template <class NodeT, class Prim>
 ValidationReport validate(const Bvh<NodeT, Prim>& bvh, std::span<const Triangle<typename NodeT::scalar_type>> tris,
@@ -92,9 +94,7 @@ ValidationReport validate(const Bvh<NodeT, Prim>& bvh, std::span<const Triangle<
     const std::size_t nt = tris.size();
     std::size_t non_finite = 0;
     for (const auto& t : tris) non_finite += t.is_finite() ? 0 : 1;
-    if (bvh.primitive_count != nt)
-        fail("primitive_count is " + std::to_string(bvh.primitive_count) + " but " + std::to_string(nt) +
-             " triangles were given");
+    if (std::string msg = detail::triangle_mismatch(bvh, nt, "validate"); !msg.empty()) fail(msg);  // reported, not thrown
     if (bvh.excluded != non_finite)
         fail("excluded is " + std::to_string(bvh.excluded) + " but " + std::to_string(non_finite) +
              " triangles have a NaN or infinite vertex");

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 /// @file vec.hpp
 /// Small fixed-size vector math used everywhere in dynbvh: Vec3<T>, component-wise
 /// min/max, dot and cross products. Plain aggregates, no SIMD intrinsics, so the

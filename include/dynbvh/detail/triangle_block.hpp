@@ -53,7 +53,7 @@
 #include "../executor.hpp"
 #include "../intersect.hpp"
 #include "../ray.hpp"
-#include "../scratch.hpp"
+#include "scratch.hpp"
 #include "../triangle.hpp"
 
 #if (defined(__SSE2__) || defined(_M_X64)) && !defined(DYNBVH_NO_SIMD)

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 /// @file io/bart.hpp
 /// Loader for BART, the Benchmark for Animated Ray Tracing (Lext, Assarsson, Möller,
 /// IEEE CG&A 21(2), 2001): `.aff` files (NFF 3.9 plus animation) become an io::Scene whose

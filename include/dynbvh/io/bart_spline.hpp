@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 /// @file io/bart_spline.hpp
 /// The keyframe interpolation of BART (Lext, Assarsson, Möller 2001, "A Benchmark for
 /// Animated Ray Tracing"): Kochanek–Bartels (tension/continuity/bias) cubic Hermite

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 /// @file io/frames.hpp
 /// Animated scenes made of one PLY or OBJ file per frame, and single meshes as 1-frame scenes.
 ///
@@ -51,8 +52,10 @@ struct FramesConfig {
     Motion motion = Motion::incoherent;  ///< reported in SceneInfo (the files cannot say)
 };
 
-/// Reads one mesh file, chosen by extension: .ply (read_ply) or .obj (read_obj).
-Mesh read_mesh(const std::string& path);
+/// Reads one mesh file, chosen by extension: .ply (read_ply) or .obj (read_obj). The readers'
+/// warnings are appended to `*warnings` when it is not null. A directory is an error saying so
+/// (open_frames reads a directory of frames).
+Mesh read_mesh(const std::string& path, std::string* warnings = nullptr);
 
 /// The files `spec` names (see the file comment), in frame order. Throws LoadError(spec, ...)
 /// when it names no frame.
@@ -354,10 +357,13 @@ private:
     std::thread thread_;  ///< last member: started after everything else is ready
 };
 
-inline Mesh read_mesh(const std::string& path) {
+inline Mesh read_mesh(const std::string& path, std::string* warnings) {
+    std::error_code ec;
+    if (std::filesystem::is_directory(path, ec))
+        throw LoadError(path, "", "is a directory, not a mesh file (open_frames reads a directory of frames)");
     const std::string ext = detail::frames::lower(std::filesystem::path(path).extension().string());
-    if (ext == ".ply") return read_ply(path);
-    if (ext == ".obj") return read_obj(path);
+    if (ext == ".ply") return read_ply(path, warnings);
+    if (ext == ".obj") return read_obj(path, warnings);
     throw LoadError(path, "", "unknown mesh format '" + ext + "' (expected .ply or .obj)");
 }
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 /// @file io/obj.hpp
 /// Wavefront OBJ reader on tinyobjloader (Debian's libtinyobjloader-dev; link
 /// tinyobjloader::tinyobjloader). Positions and faces are kept (normals and texture
@@ -15,10 +16,20 @@
 /// "default" with Material's defaults, appended only when needed. A file without
 /// materials gives an empty `face_material`.
 ///
-/// Errors throw io::LoadError naming the file: missing file, a parse error from
-/// tinyobjloader (its error and warning text included), vertex lines with NaN/inf or
-/// fewer than three coordinates ("line N"), face indices out of range ("line N"),
-/// polygons of more than 255 vertices (tinyobjloader stores counts in a byte).
+/// Before tinyobjloader sees the text, a leading UTF-8 byte-order mark is skipped and a
+/// backslash at the end of a line joins it with the next (OBJ's line continuation); line
+/// numbers in errors are those of the file (the first line of a joined line).
+///
+/// Errors throw io::LoadError naming the file: missing file, a directory, a file with
+/// neither vertices nor faces (e.g. a text file renamed .obj), a parse error from
+/// tinyobjloader (its error and warning text included), and, with "line N": a vertex
+/// coordinate that is not wholly a finite number (`1,5`, `1.0.5`, `1e5e5`, `nan`, `inf`;
+/// the text is quoted) or overflows float, fewer than three coordinates, a face index that
+/// is not wholly an integer, is at or beyond 2^31 (checked on the text, before any integer
+/// could wrap), or resolves outside the vertices (relative indices before the first
+/// vertex included); polygons of more than 255 vertices (tinyobjloader stores counts in
+/// a byte). Texture and normal coordinates (`vt`, `vn`) are not used and not checked;
+/// the texture/normal parts of face indices are checked as integers below 2^31.
 /// tinyobjloader's warnings (e.g. a missing .mtl file) do not fail the load; they are
 /// returned through `warnings` when given.
 #pragma once
@@ -88,6 +99,54 @@ struct SpanBuf : std::streambuf {
     }
 };
 
+/// The text tinyobjloader and the checks read: the file's bytes without a leading UTF-8 byte-order
+/// mark, with every backslash-newline continuation replaced by a space (copied only when the file
+/// has one), and the file's line number of each line of the result.
+struct Text {
+    std::span<const char> raw;                ///< the file's bytes after the byte-order mark
+    std::string joined;                       ///< the joined text, when `raw` has continuations
+    std::vector<std::size_t> first_line;      ///< file line of line k + 1 of bytes(); empty: the same
+    std::span<const char> bytes() const { return first_line.empty() ? raw : std::span<const char>(joined.data(), joined.size()); }
+    std::size_t file_line(std::size_t line) const {
+        return first_line.empty() || line == 0 || line > first_line.size() ? line : first_line[line - 1];
+    }
+};
+
+inline Text normalise(std::span<const char> bytes) {
+    Text t;
+    if (bytes.size() >= 3 && std::memcmp(bytes.data(), "\xEF\xBB\xBF", 3) == 0) bytes = bytes.subspan(3);
+    t.raw = bytes;
+    if (bytes.empty()) return t;
+    // Continuations: a '\\' right before "\n" or "\r\n".
+    bool any = false;
+    for (const char* p = bytes.data(), *end = p + bytes.size(); !any;) {
+        p = static_cast<const char*>(std::memchr(p, '\\', static_cast<std::size_t>(end - p)));
+        if (!p) break;
+        ++p;
+        any = (p < end && *p == '\n') || (end - p >= 2 && p[0] == '\r' && p[1] == '\n');
+    }
+    if (!any) return t;
+    t.joined.reserve(bytes.size());
+    std::size_t line = 1;
+    t.first_line.push_back(1);
+    for (std::size_t i = 0; i < bytes.size(); ++i) {
+        const char c = bytes[i];
+        if (c == '\\') {
+            std::size_t j = i + 1;
+            if (j < bytes.size() && bytes[j] == '\r' && j + 1 < bytes.size() && bytes[j + 1] == '\n') ++j;
+            if (j < bytes.size() && bytes[j] == '\n') {  // joined: the logical line goes on
+                t.joined += ' ';
+                ++line;
+                i = j;
+                continue;
+            }
+        }
+        t.joined += c;
+        if (c == '\n') t.first_line.push_back(++line);
+    }
+    return t;
+}
+
 /// Calls f(line_number, text) for every line of `bytes` (text without '\n' and '\r').
 template <class F> void for_each_line(std::span<const char> bytes, F&& f) {
     const char* p = bytes.data();
@@ -113,43 +172,108 @@ inline bool keyword(std::string_view text, std::string_view key, std::string_vie
     return true;
 }
 
-/// tinyobjloader reads "nan", "inf" or a missing coordinate as 0: find such `v` lines first.
-inline void check_vertex_lines(std::span<const char> bytes, const std::string& file) {
-    for_each_line(bytes, [&](std::size_t line, std::string_view text) {
+/// Calls f(token) for the blank-separated tokens of `rest` before a '#' comment.
+template <class F> void for_each_token(std::string_view rest, F&& f) {
+    std::size_t i = 0;
+    for (;;) {
+        while (i < rest.size() && (rest[i] == ' ' || rest[i] == '\t')) ++i;
+        if (i >= rest.size() || rest[i] == '#') return;
+        const std::size_t b = i;
+        while (i < rest.size() && rest[i] != ' ' && rest[i] != '\t' && rest[i] != '#') ++i;
+        f(rest.substr(b, i - b));
+    }
+}
+
+/// Whether `tok` is wholly a finite decimal number ([+|-]digits[.digits][e[+|-]digits]); its value in `out`.
+/// from_chars stops at the first character that cannot continue the number, so "1,5", "1.0.5" and
+/// "1e5e5" are caught by the end check; it also accepts "nan" and "inf", caught by isfinite.
+inline bool whole_number(std::string_view tok, double& out) {
+    if (!tok.empty() && tok.front() == '+') tok.remove_prefix(1);
+    if (tok.empty() || tok.front() == '+') return false;
+    const auto r = std::from_chars(tok.data(), tok.data() + tok.size(), out, std::chars_format::general);
+    return r.ec == std::errc{} && r.ptr == tok.data() + tok.size() && std::isfinite(out);
+}
+
+/// Whether `tok` is wholly an integer ([+|-]digits) of magnitude below 2^31 (what tinyobjloader's int
+/// holds); its value in `out`. Judged on the text: "4294967299" is an error, not 3.
+inline bool whole_index(std::string_view tok, std::int64_t& out) {
+    bool neg = false;
+    if (!tok.empty() && (tok.front() == '+' || tok.front() == '-')) { neg = tok.front() == '-'; tok.remove_prefix(1); }
+    if (tok.empty() || tok.size() > 10) return false;   // 10 digits cover 2^31 - 1; more overflow (or are padding)
+    std::int64_t v = 0;
+    for (char c : tok) {
+        if (c < '0' || c > '9') return false;
+        v = v * 10 + (c - '0');
+    }
+    if (v > std::numeric_limits<std::int32_t>::max()) return false;
+    out = neg ? -v : v;
+    return true;
+}
+
+/// Checks the text tinyobjloader would misread: `v` lines whose coordinates are not wholly finite
+/// numbers (it reads "1,5" as 1, "nan" as 0) or fewer than three, and `f` lines whose indices are
+/// not wholly integers below 2^31 or are relative indices before the first vertex (it would wrap
+/// them into valid-looking faces). Line numbers are the file's.
+inline void check_lines(const Text& t, const std::string& file) {
+    std::int64_t seen = 0;   // `v` lines so far (relative indices count back from here)
+    for_each_line(t.bytes(), [&](std::size_t l, std::string_view text) {
+        const std::string where = "line " + std::to_string(t.file_line(l));
         std::string_view rest;
-        if (!keyword(text, "v", rest)) return true;
-        int tokens = 0;
-        bool in_token = false;
-        for (char c : rest) {
-            if (c == '#') break;
-            const bool space = c == ' ' || c == '\t';
-            if (!space && !in_token) ++tokens;
-            in_token = !space;
-            const bool alpha = (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z');
-            if (alpha && c != 'e' && c != 'E')
-                throw LoadError(file, "line " + std::to_string(line), "vertex coordinate is not a finite number: '" + std::string(text) + "'");
+        if (keyword(text, "v", rest)) {
+            int tokens = 0;
+            for_each_token(rest, [&](std::string_view tok) {
+                ++tokens;
+                double v = 0;
+                if (!whole_number(tok, v)) {
+                    const bool overflow = std::from_chars(tok.data() + (tok.front() == '+'), tok.data() + tok.size(), v).ec ==
+                                          std::errc::result_out_of_range;
+                    throw LoadError(file, where, "vertex coordinate '" + std::string(tok) + "' is not a finite number" +
+                                                     (overflow ? " (out of range)" : "") + ": '" + std::string(text) + "'");
+                }
+            });
+            if (tokens < 3) throw LoadError(file, where, "vertex has fewer than 3 coordinates");
+            ++seen;
+            return true;
         }
-        if (tokens < 3) throw LoadError(file, "line " + std::to_string(line), "vertex has fewer than 3 coordinates");
+        if (!keyword(text, "f", rest)) return true;
+        for_each_token(rest, [&](std::string_view tok) {
+            // v, v/vt, v//vn or v/vt/vn: each part present must be an integer below 2^31.
+            for (int part = 0; !tok.empty() || part == 0; ++part) {
+                const std::size_t slash = tok.find('/');
+                const std::string_view num = tok.substr(0, slash);
+                tok = slash == std::string_view::npos ? std::string_view() : tok.substr(slash + 1);
+                if (part > 2) throw LoadError(file, where, "face vertex has more than 3 '/'-separated parts: '" + std::string(text) + "'");
+                if (num.empty() && part > 0) continue;
+                std::int64_t idx = 0;
+                if (!whole_index(num, idx))
+                    throw LoadError(file, where, "face index '" + std::string(num) +
+                                                     "' is out of range or not an integer (indices must be integers of magnitude below 2^31)");
+                if (part == 0 && idx < 0 && -idx > seen)
+                    throw LoadError(file, where, "face index out of range: relative index " + std::to_string(idx) + " refers before the first vertex (" +
+                                                     std::to_string(seen) + " vertices so far)");
+                if (slash == std::string_view::npos) break;
+            }
+        });
         return true;
     });
 }
 
 /// Line of the `n`-th `v` line (0-based), for errors found after parsing.
-inline std::size_t nth_vertex_line(std::span<const char> bytes, std::size_t n) {
+inline std::size_t nth_vertex_line(const Text& t, std::size_t n) {
     std::size_t found = 0, seen = 0;
-    for_each_line(bytes, [&](std::size_t line, std::string_view text) {
+    for_each_line(t.bytes(), [&](std::size_t line, std::string_view text) {
         std::string_view rest;
         if (keyword(text, "v", rest) && seen++ == n) { found = line; return false; }
         return true;
     });
-    return found;
+    return t.file_line(found);
 }
 
 /// First `f` line with an index that resolves outside [0, vertex_count); 0 if none.
-inline std::size_t bad_face_line(std::span<const char> bytes, std::int64_t vertex_count) {
+inline std::size_t bad_face_line(const Text& t, std::int64_t vertex_count) {
     std::size_t found = 0;
     std::int64_t seen = 0;
-    for_each_line(bytes, [&](std::size_t line, std::string_view text) {
+    for_each_line(t.bytes(), [&](std::size_t line, std::string_view text) {
         std::string_view rest;
         if (keyword(text, "v", rest)) { ++seen; return true; }
         if (!keyword(text, "f", rest)) return true;
@@ -166,7 +290,7 @@ inline std::size_t bad_face_line(std::span<const char> bytes, std::int64_t verte
         }
         return true;
     });
-    return found;
+    return t.file_line(found);
 }
 
 inline std::string where_line(std::size_t line) { return line ? "line " + std::to_string(line) : std::string(); }
@@ -177,13 +301,14 @@ inline std::string where_line(std::size_t line) { return line ? "line " + std::t
 
 inline Mesh read_obj(std::span<const char> bytes, std::string file, std::string mtl_dir, std::string* warnings) {
     using namespace detail::obj;
-    check_vertex_lines(bytes, file);
+    const Text text = normalise(bytes);
+    check_lines(text, file);
 
     tinyobj::attrib_t attrib;
     std::vector<tinyobj::shape_t> shapes;
     std::vector<tinyobj::material_t> materials;
     std::string warn, err;
-    SpanBuf buf(bytes);
+    SpanBuf buf(text.bytes());
     std::istream in(&buf);
     if (!mtl_dir.empty() && mtl_dir.back() != '/') mtl_dir += '/';
     tinyobj::MaterialFileReader mtl_reader(mtl_dir);
@@ -200,13 +325,17 @@ inline Mesh read_obj(std::span<const char> bytes, std::string file, std::string 
 
     Mesh m;
     const std::size_t nv = attrib.vertices.size() / 3;
+    std::size_t face_count = 0;
+    for (const auto& sh : shapes) face_count += sh.mesh.num_face_vertices.size();
+    if (nv == 0 && face_count == 0)
+        throw LoadError(file, "", "no vertices and no faces: empty, or not an OBJ file");
     if (nv > std::numeric_limits<std::uint32_t>::max()) throw LoadError(file, "", "more than 2^32-1 vertices");
     m.vertices.resize(nv);
     for (std::size_t i = 0; i < nv; ++i) {
         const Vec3f v{static_cast<float>(attrib.vertices[3 * i]), static_cast<float>(attrib.vertices[3 * i + 1]),
                       static_cast<float>(attrib.vertices[3 * i + 2])};
         if (!dynbvh::is_finite(v))
-            throw LoadError(file, where_line(nth_vertex_line(bytes, i)), "vertex " + std::to_string(i + 1) + " is not finite (or overflows float)");
+            throw LoadError(file, where_line(nth_vertex_line(text, i)), "vertex " + std::to_string(i + 1) + " is not finite (or overflows float)");
         m.vertices[i] = v;
     }
 
@@ -234,7 +363,7 @@ inline Mesh read_obj(std::span<const char> bytes, std::string file, std::string 
             for (std::size_t k = 0; k < n; ++k) {
                 const int vi = mesh.indices[offset + k].vertex_index;
                 if (vi < 0 || static_cast<std::size_t>(vi) >= nv)
-                    throw LoadError(file, where_line(bad_face_line(bytes, static_cast<std::int64_t>(nv))),
+                    throw LoadError(file, where_line(bad_face_line(text, static_cast<std::int64_t>(nv))),
                                     "face index out of range: " + (vi < 0 ? std::string("before the first vertex")
                                                                           : std::to_string(vi + 1)) +
                                         " (there are " + std::to_string(nv) + " vertices)");

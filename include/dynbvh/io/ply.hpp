@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 /// @file io/ply.hpp
 /// Stanford PLY reader and writer (Turk 1994 "The PLY polygon file format").
 ///
@@ -24,7 +25,12 @@
 /// list. Reservations are capped by what the remaining bytes can hold, so a header
 /// that lies about its counts never causes a large allocation. ASCII records must be
 /// one per line (blank lines are ignored); data after the last element is ignored.
-/// Skipped ASCII properties are not validated.
+/// Skipped ASCII properties are not validated. A leading UTF-8 byte-order mark is skipped.
+///
+/// A binary body longer than the header implies (e.g. doubles written under `property
+/// float`) means the header does not describe the data: when no face survives it is an
+/// error, otherwise a warning "<file>: byte N: ..." (one line) is appended to `*warnings`
+/// when the caller passes it (a trailing line break alone is not warned about).
 #pragma once
 
 #include <algorithm>
@@ -55,10 +61,11 @@ enum class PlyEncoding { ascii, binary_little_endian, binary_big_endian };
 
 /// Parses a PLY file held in memory. `name_for_errors` is the file name reported in
 /// LoadError. O(file size); never reads outside `bytes`.
-Mesh read_ply(std::span<const char> bytes, std::string name_for_errors);
+/// Warnings (see above) are appended to `*warnings` when it is not null.
+Mesh read_ply(std::span<const char> bytes, std::string name_for_errors, std::string* warnings = nullptr);
 
 /// Reads the PLY file at `path` (one read of the whole file, then read_ply(bytes)).
-Mesh read_ply(const std::string& path);
+Mesh read_ply(const std::string& path, std::string* warnings = nullptr);
 
 /// Encodes `mesh` as PLY: float x y z, `list uchar int vertex_indices` faces (uint when
 /// there are 2^31 vertices or more). ASCII floats use the shortest representation that
@@ -196,6 +203,7 @@ inline Header parse_header(std::span<const char> bytes, const std::string& file)
     const char* const begin = bytes.data();
     const char* const end = begin + bytes.size();
     const char* p = begin;
+    if (bytes.size() >= 3 && std::memcmp(begin, "\xEF\xBB\xBF", 3) == 0) p += 3;   // UTF-8 byte-order mark
     std::size_t line = 0;
     std::vector<std::string_view> tok;
     bool saw_format = false;
@@ -489,8 +497,9 @@ std::size_t walk_binary(const Context& c, const Element& e, std::size_t pos, std
     return pos;
 }
 
+/// Parses the binary body; returns the offset just past the last element.
 template <bool Swap>
-void parse_binary(const Context& c, Mesh& m) {
+std::size_t parse_binary(const Context& c, Mesh& m) {
     std::size_t pos = c.h.data_offset;
     const std::size_t size = c.bytes.size();
     for (const Element& e : c.h.elements) {
@@ -553,6 +562,7 @@ void parse_binary(const Context& c, Mesh& m) {
             pos = walk_binary<Swap>(c, e, pos, done, m);
         }
     }
+    return pos;
 }
 
 // ----- ascii ------------------------------------------------------------------------------
@@ -670,24 +680,35 @@ inline void parse_ascii(const Context& c, Mesh& m) {
 
 } // namespace detail::ply
 
-inline Mesh read_ply(std::span<const char> bytes, std::string name_for_errors) {
+inline Mesh read_ply(std::span<const char> bytes, std::string name_for_errors, std::string* warnings) {
     using namespace detail::ply;
     const Header h = parse_header(bytes, name_for_errors);
     Mesh m;
     const Context c{bytes, name_for_errors, h, static_cast<std::uint32_t>(h.elements[static_cast<std::size_t>(h.vertex)].count)};
     constexpr bool little = std::endian::native == std::endian::little;
     static_assert(little || std::endian::native == std::endian::big, "mixed-endian hosts are not supported");
+    std::size_t end = bytes.size();
     switch (h.format) {
         case Format::ascii: parse_ascii(c, m); break;
-        case Format::binary_le: parse_binary<!little>(c, m); break;
-        case Format::binary_be: parse_binary<little>(c, m); break;
+        case Format::binary_le: end = parse_binary<!little>(c, m); break;
+        case Format::binary_be: end = parse_binary<little>(c, m); break;
+    }
+    // Bytes after the last element: the header's types or counts do not describe the body.
+    std::size_t extra = bytes.size() - end;
+    const std::string_view tail(bytes.data() + end, extra);
+    if (tail == "\n" || tail == "\r\n") extra = 0;
+    if (extra != 0) {
+        const std::string what = std::to_string(extra) + " bytes after the last element: the header's types or counts do not "
+                                 "match the body (e.g. doubles written under 'property float')";
+        if (h.face >= 0 && m.faces.empty()) fail_byte(name_for_errors, end, what + ", and no face was read");
+        if (warnings) *warnings += name_for_errors + ": byte " + std::to_string(end) + ": " + what + "\n";
     }
     return m;
 }
 
-inline Mesh read_ply(const std::string& path) {
+inline Mesh read_ply(const std::string& path, std::string* warnings) {
     const auto file = detail::read_file(path);
-    return read_ply(file.span(), path);
+    return read_ply(file.span(), path, warnings);
 }
 
 inline std::string to_ply(const Mesh& mesh, PlyEncoding encoding) {

@@ -1,8 +1,9 @@
+// SPDX-License-Identifier: MIT
 /// @file io/scene.hpp
-/// The animated-scene description shared by the loaders (PLY/OBJ frame sequences,
-/// BART) and the built-in procedural scenes: per-frame triangles with material ids,
-/// per-object transforms, an animated camera, materials and lights.
-/// Optional: the core builders never include this header.
+/// What the loaders return (PLY/OBJ meshes and frame sequences, BART): per-frame triangles with
+/// material ids, per-object transforms, an animated camera, and the materials and lights MTL and
+/// BART describe. The study's procedural scenes (bench/scenes) implement the same Scene interface;
+/// how a renderer reads a material is bench/render's business. The core builders never include this header.
 #pragma once
 
 #include <array>
@@ -30,24 +31,21 @@ private:
     std::string file_, where_;
 };
 
-/// Surface description shared by MTL, BART `f`/`fm` and the built-in scenes.
+/// Surface description read from MTL and BART `f`/`fm`.
 /// Colours are linear RGB in [0, 1].
 struct Material {
     std::string name;
     Vec3f ambient{0, 0, 0};
     Vec3f diffuse{0.8f, 0.8f, 0.8f};
-    Vec3f specular{0, 0, 0};      ///< reflectance of mirror reflection (Whitted); > 0 asks for reflection rays
+    Vec3f specular{0, 0, 0};      ///< specular colour (MTL Ks, BART ks)
     float shininess = 0;          ///< Phong exponent (MTL Ns, BART shine)
-    float transmission = 0;       ///< fraction transmitted; > 0 asks for refraction rays
+    float transmission = 0;       ///< fraction transmitted (MTL: 1 - d, or Tf for illum 6 and 7; BART T)
     float ior = 1;                ///< index of refraction (MTL Ni, BART ior)
     float opacity = 1;            ///< MTL d (1 - Tr)
     int illum = 2;                ///< MTL illumination model, kept for the user
-
-    bool reflects() const noexcept { return specular.x > 0 || specular.y > 0 || specular.z > 0; }
-    bool refracts() const noexcept { return transmission > 0; }
 };
 
-/// Point light (BART `l`, built-in scenes).
+/// Point light (BART `l`).
 struct Light {
     Vec3f position{0, 0, 0};
     Vec3f color{1, 1, 1};
@@ -163,7 +161,7 @@ struct SceneInfo {
 };
 
 /// An animated scene: a fixed number of frames, each evaluated on demand.
-/// Implementations: built-in scenes (scenes/builtin.hpp), frame sequences (io/frames.hpp), BART (io/bart.hpp).
+/// Implementations: frame sequences (io/frames.hpp), BART (io/bart.hpp); the study's procedural scenes (bench/scenes).
 class Scene {
 public:
     virtual ~Scene() = default;

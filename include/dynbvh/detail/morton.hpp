@@ -1,4 +1,5 @@
-/// @file morton.hpp
+// SPDX-License-Identifier: MIT
+/// @file detail/morton.hpp
 /// Morton (Z-order) codes of reference centres, shared by LBVH, PLOC and presplitting.
 /// Centres are quantised on a 2^k grid per axis over the centroid bounds (k = 10 for
 /// 30-bit codes in uint32_t, k = 21 for 63-bit codes in uint64_t) and their bits interleaved
@@ -10,14 +11,22 @@
 #include <cmath>
 #include <cstdint>
 #include <span>
+#include <stdexcept>
+#include <string>
 #include <type_traits>
 
-#include "aabb.hpp"
+#include "../aabb.hpp"
 #include "radix_sort.hpp"
 #include "references.hpp"
 #include "scratch.hpp"
 
 namespace dynbvh::morton {
+
+/// Throws std::invalid_argument naming `builder` unless `bits` is 30 (uint32 keys) or 63 (uint64 keys).
+inline void check_bits(int bits, const char* builder) {
+    if (bits != 30 && bits != 63)
+        throw std::invalid_argument(std::string(builder) + ": morton_bits must be 30 or 63, got " + std::to_string(bits));
+}
 
 /// Spreads the low 10 bits of v so that two zero bits separate each: b9..b0 -> b9 0 0 b8 ... b0.
 constexpr std::uint32_t spread10(std::uint32_t v) noexcept {

@@ -14,7 +14,7 @@
 #include <string>
 #include <vector>
 
-#include "../io/scene.hpp"
+#include <dynbvh/io/scene.hpp>
 #include "geometry.hpp"
 #include "options.hpp"
 #include "orbit_camera.hpp"

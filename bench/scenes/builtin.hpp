@@ -25,7 +25,7 @@
 #include <string>
 #include <string_view>
 
-#include "../io/scene.hpp"
+#include <dynbvh/io/scene.hpp>
 #include "breaking.hpp"
 #include "cloth_ball.hpp"
 #include "funnel.hpp"

@@ -8,7 +8,7 @@
 #include <cmath>
 #include <cstdint>
 
-#include "../vec.hpp"
+#include <dynbvh/vec.hpp>
 
 namespace dynbvh::scenes {
 

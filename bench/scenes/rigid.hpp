@@ -6,8 +6,8 @@
 
 #include <cmath>
 
-#include "../io/scene.hpp"
-#include "../vec.hpp"
+#include <dynbvh/io/scene.hpp>
+#include <dynbvh/vec.hpp>
 
 namespace dynbvh::scenes {
 

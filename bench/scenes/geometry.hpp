@@ -13,8 +13,8 @@
 #include <stdexcept>
 #include <vector>
 
-#include "../aabb.hpp"
-#include "../triangle.hpp"
+#include <dynbvh/aabb.hpp>
+#include <dynbvh/triangle.hpp>
 
 namespace dynbvh::scenes {
 

@@ -16,7 +16,7 @@
 #include <string>
 #include <vector>
 
-#include "../io/scene.hpp"
+#include <dynbvh/io/scene.hpp>
 #include "cloth.hpp"
 #include "geometry.hpp"
 #include "options.hpp"

@@ -21,7 +21,7 @@
 #include <string_view>
 #include <vector>
 
-#include "../io/scene.hpp"
+#include <dynbvh/io/scene.hpp>
 #include "geometry.hpp"
 #include "options.hpp"
 #include "orbit_camera.hpp"

@@ -12,7 +12,7 @@
 #include <stdexcept>
 #include <vector>
 
-#include "../vec.hpp"
+#include <dynbvh/vec.hpp>
 
 namespace dynbvh::scenes {
 

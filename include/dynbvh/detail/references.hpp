@@ -1,4 +1,5 @@
-/// @file references.hpp
+// SPDX-License-Identifier: MIT
+/// @file detail/references.hpp
 /// The builders' common input: one reference per primitive (or per presplit fragment)
 /// with its box and the triangle it stands for, plus the scene and centroid bounds.
 /// Triangles with a NaN or infinite vertex are excluded here and counted: they can
@@ -11,9 +12,9 @@
 #include <span>
 #include <vector>
 
-#include "executor.hpp"
+#include "../executor.hpp"
 #include "scratch.hpp"
-#include "triangle.hpp"
+#include "../triangle.hpp"
 
 namespace dynbvh {
 

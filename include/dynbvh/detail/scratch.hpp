@@ -1,11 +1,13 @@
-/// @file scratch.hpp
+// SPDX-License-Identifier: MIT
+/// @file detail/scratch.hpp
 /// Scratch memory for the builders' temporary arrays. A dynamic scene rebuilds every
 /// frame with the same array sizes; fresh allocations of that size come from the kernel
 /// as new pages, and faulting them in (and zeroing them) can cost more than the build.
 /// Large blocks freed by a build are therefore kept in a small process-wide cache and
 /// handed to the next build. `scratch_vector<T>` also leaves elements uninitialised on
 /// resize (default-initialisation), since every builder overwrites what it allocates.
-/// Call `release_scratch()` to return the cached memory to the system.
+/// Call `release_scratch()` to return the cached memory to the system. The cache lives until the
+/// process exits (it is never destroyed), so scratch-backed objects are safe in any static order.
 #pragma once
 
 #include <algorithm>
@@ -25,9 +27,13 @@ public:
     static constexpr std::size_t min_cached = std::size_t(1) << 20;     ///< smaller blocks bypass the cache
     static constexpr std::size_t alignment = 64;
 
+    /// The pool is never destroyed (deliberately leaked; its blocks stay reachable, so leak checkers
+    /// are quiet): objects with static storage duration (a namespace-scope Bvh, ...) return their
+    /// blocks during static destruction, in any order, possibly after a function-local pool would
+    /// have been destroyed. The system reclaims the memory at exit.
     static ScratchPool& instance() {
-        static ScratchPool pool;
-        return pool;
+        static ScratchPool* const pool = new ScratchPool;
+        return *pool;
     }
     void* take(std::size_t bytes) {
         if (bytes >= min_cached) {

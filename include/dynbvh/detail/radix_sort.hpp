@@ -1,4 +1,5 @@
-/// @file radix_sort.hpp
+// SPDX-License-Identifier: MIT
+/// @file detail/radix_sort.hpp
 /// Parallel stable LSD radix sort of unsigned keys with a payload, shared by every
 /// Morton-ordered builder. Up to 11-bit digits; each pass builds per-task histograms, scans
 /// them (digit-major) and scatters; a pass whose digit is the same for every key is skipped.
@@ -13,7 +14,7 @@
 #include <type_traits>
 #include <vector>
 
-#include "executor.hpp"
+#include "../executor.hpp"
 #include "scratch.hpp"
 
 namespace dynbvh {

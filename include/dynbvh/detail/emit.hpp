@@ -1,4 +1,5 @@
-/// @file collapse.hpp
+// SPDX-License-Identifier: MIT
+/// @file detail/emit.hpp
 /// The step every builder ends with: a raw binary tree whose leaves are single
 /// references becomes the final `Bvh` layout. In one parallel bottom-up pass it
 /// computes node boxes and decides, by the surface area heuristic, which subtrees
@@ -11,26 +12,23 @@
 #pragma once
 
 #include <algorithm>
+#include <array>
 #include <atomic>
 #include <cstdint>
 #include <limits>
 #include <memory>
 #include <span>
+#include <stdexcept>
+#include <string>
 #include <vector>
 
-#include "bvh.hpp"
-#include "executor.hpp"
+#include "../bvh.hpp"
+#include "../cost.hpp"
+#include "../executor.hpp"
 #include "references.hpp"
 #include "scratch.hpp"
 
 namespace dynbvh {
-
-/// Leaf collapse knobs shared by every builder.
-struct LeafConfig {
-    std::uint32_t max_leaf_size = 8;  ///< most references in one leaf (1 disables collapsing)
-    float traversal_cost = 3.0f;      ///< Ct of the collapse decision (study: 3)
-    float intersection_cost = 2.0f;   ///< Ci of the collapse decision (study: 2)
-};
 
 /// A builder's raw output: topology only. Inner nodes are 0 .. left.size()-1 in any order;
 /// a child id with `leaf_flag` set is a reference index (into References) instead.
@@ -43,13 +41,21 @@ struct BinaryTree {
     static constexpr std::uint32_t ref_of(std::uint32_t id) noexcept { return id & ~leaf_flag; }
     static constexpr std::uint32_t leaf(std::uint32_t ref) noexcept { return ref | leaf_flag; }
     std::size_t inner_count() const noexcept { return left.size(); }
+    /// Throws std::length_error naming `builder` when `refs` references cannot be told from leaf-flagged ids.
+    static void check_size(std::size_t refs, const char* builder) {
+        if (refs >= leaf_flag)
+            throw std::length_error(std::string(builder) + ": " + std::to_string(refs) +
+                                    " references exceed the limit of 2^31 - 1");
+    }
+    /// A builder's start over `refs` references: the size checked (check_size), and the finished tree
+    /// when refs < 2 (empty, or one reference as the root).
+    static BinaryTree start(std::size_t refs, const char* builder) {
+        check_size(refs, builder);
+        BinaryTree t;
+        if (refs == 1) t.root = leaf(0);
+        return t;
+    }
 };
-
-/// Turns a raw tree over `refs` into the final layout (see the file comment).
-/// For prim::precomputed the leaf triangles are copied from `tris`. O(n) work, parallel.
-template <class NodeT, class Prim, class T, class Exec>
-Bvh<NodeT, Prim> emit_bvh(const BinaryTree& tree, const References<T>& refs, std::span<const Triangle<T>> tris,
-                          const LeafConfig& cfg, const Exec& ex);
 
 namespace detail {
 
@@ -72,8 +78,9 @@ struct CollapseRule {
     float ct, ci;
     std::uint32_t max_leaf;
 
+    // Evaluated in float: the facts are per raw node, and float keeps them small.
     explicit CollapseRule(const LeafConfig& cfg) noexcept
-        : ct(cfg.traversal_cost), ci(cfg.intersection_cost), max_leaf(std::max<std::uint32_t>(1, cfg.max_leaf_size)) {}
+        : ct(float(cfg.cost.ct)), ci(float(cfg.cost.ci)), max_leaf(std::max<std::uint32_t>(1, cfg.max_leaf_size)) {}
 
     /// Facts of a single reference with box `b`.
     void leaf(const AABB<T>& b, RawNodeInfo<T>& f) const noexcept {
@@ -99,6 +106,16 @@ struct CollapseRule {
         if (f.collapsed) { f.cost = leaf_cost; f.size = 1; f.height = 0; }
         else { f.cost = split_cost; f.size = 1 + l.size + r.size; f.height = 1 + std::max(l.height, r.height); }
     }
+    /// Facts of inner node `p` of `tree` once both its children's are known: a reference child's
+    /// from its box in `refs`, an inner child's from `info`. The one rule for every bottom-up walk
+    /// (compute_node_info below, LBVH's radix tree).
+    void node(const BinaryTree& tree, const References<T>& refs, RawNodeInfo<T>* info, std::uint32_t p) const noexcept {
+        RawNodeInfo<T> l, r;
+        const std::uint32_t a = tree.left[p], b = tree.right[p];
+        if (BinaryTree::is_leaf(a)) leaf(refs.box[BinaryTree::ref_of(a)], l); else l = info[a];
+        if (BinaryTree::is_leaf(b)) leaf(refs.box[BinaryTree::ref_of(b)], r); else r = info[b];
+        parent(l, r, info[p]);
+    }
 };
 
 /// Emission state shared by the top-down workers.
@@ -111,13 +128,23 @@ struct Emitter {
     decltype(Bvh<NodeT>::prim_ids)& prim_ids;
     std::atomic<bool> deduplicated{false};   ///< some leaf held two fragments of one triangle
 
-    struct Item {
-        std::uint32_t id;    ///< raw child id (inner node or leaf-flagged reference)
+    /// Where a node goes in the output.
+    struct Place {
         std::uint32_t pos;   ///< output position of this node
         std::uint32_t free;  ///< first output slot for its descendants
         std::uint32_t ref;   ///< first prim_ids slot of its references
         std::uint32_t depth;
     };
+    struct Item {
+        std::uint32_t id;    ///< raw child id (inner node or leaf-flagged reference)
+        Place at;
+    };
+    /// The items of the two children of inner raw node `id` placed at `at`, after writing it.
+    std::array<Item, 2> split(const Item& it) {
+        const std::uint32_t l = tree.left[it.id], r = tree.right[it.id];
+        const auto [lp, rp] = write_inner(it.at, info[it.id].box(), size_of(l), refs_of(l));
+        return {Item{l, lp}, Item{r, rp}};
+    }
 
     std::uint32_t refs_of(std::uint32_t id) const { return BinaryTree::is_leaf(id) ? 1u : info[id].refs; }
     std::uint32_t size_of(std::uint32_t id) const { return BinaryTree::is_leaf(id) ? 1u : info[id].size; }
@@ -138,9 +165,22 @@ struct Emitter {
         return false;
     }
 
+    /// Writes node `at` as an inner node with box `box` whose children go to at.free and at.free + 1;
+    /// the left child's subtree has `left_size` nodes and `left_refs` references (laid out first).
+    /// Returns the left and the right child's places. The one copy of the layout arithmetic.
+    std::array<Place, 2> write_inner(const Place& at, const AABB<T>& box, std::uint32_t left_size,
+                                     std::uint32_t left_refs) {
+        NodeT& node = nodes[at.pos];
+        node.set_bounds(box);
+        node.index = at.free;
+        node.count = 0;
+        return {Place{at.free, at.free + 2, at.ref, at.depth + 1},
+                Place{at.free + 1, at.free + 1 + left_size, at.ref + left_refs, at.depth + 1}};
+    }
+
     /// Writes a leaf holding every reference below `id`, deduplicating fragments of one triangle.
     void write_leaf(const Item& it, std::vector<std::uint32_t>& stack) {
-        auto* out = prim_ids.data() + it.ref;
+        auto* out = prim_ids.data() + it.at.ref;
         std::uint32_t n = 0;
         if (BinaryTree::is_leaf(it.id)) {
             out[n++] = static_cast<typename NodeT::index_type>(refs.prim[BinaryTree::ref_of(it.id)]);
@@ -162,9 +202,9 @@ struct Emitter {
             count = static_cast<std::uint32_t>(std::unique(out, out + n) - out);
             if (count < n) deduplicated.store(true, std::memory_order_relaxed);
         }
-        NodeT& node = nodes[it.pos];
+        NodeT& node = nodes[it.at.pos];
         node.set_bounds(box_of(it.id));
-        node.index = it.ref;
+        node.index = it.at.ref;
         node.count = count;
     }
 
@@ -172,20 +212,16 @@ struct Emitter {
     std::uint32_t emit_subtree(const Item& root) {
         std::vector<Item> work{root};
         std::vector<std::uint32_t> scratch;
-        std::uint32_t deepest = root.depth;
+        std::uint32_t deepest = root.at.depth;
         while (!work.empty()) {
             const Item it = work.back();
             work.pop_back();
-            deepest = std::max(deepest, it.depth);
+            deepest = std::max(deepest, it.at.depth);
             if (emits_leaf(it.id)) { write_leaf(it, scratch); continue; }
-            if (must_rebalance(it.id, it.depth)) { deepest = std::max(deepest, rebalance(it)); continue; }
-            NodeT& node = nodes[it.pos];
-            node.set_bounds(info[it.id].box());
-            node.index = it.free;
-            node.count = 0;
-            const std::uint32_t l = tree.left[it.id], r = tree.right[it.id];
-            work.push_back({r, it.free + 1, it.free + 2 + size_of(l) - 1, it.ref + refs_of(l), it.depth + 1});
-            work.push_back({l, it.free, it.free + 2, it.ref, it.depth + 1});
+            if (must_rebalance(it.id, it.at.depth)) { deepest = std::max(deepest, rebalance(it)); continue; }
+            const auto [l, r] = split(it);
+            work.push_back(r);
+            work.push_back(l);
         }
         return deepest;
     }
@@ -202,16 +238,16 @@ struct Emitter {
             if (emits_leaf(c)) leaves.push_back({c, refs_of(c), box_of(c)});
             else { stack.push_back(tree.right[c]); stack.push_back(tree.left[c]); }
         }
-        struct Range { std::uint32_t begin, end, pos, free, ref, depth; };
-        std::vector<Range> work{{0, std::uint32_t(leaves.size()), it.pos, it.free, it.ref, it.depth}};
+        struct Range { std::uint32_t begin, end; Place at; };
+        std::vector<Range> work{{0, std::uint32_t(leaves.size()), it.at}};
         std::vector<std::uint32_t> scratch;
-        std::uint32_t deepest = it.depth;
+        std::uint32_t deepest = it.at.depth;
         while (!work.empty()) {
             const Range r = work.back();
             work.pop_back();
-            deepest = std::max(deepest, r.depth);
+            deepest = std::max(deepest, r.at.depth);
             if (r.end - r.begin == 1) {
-                write_leaf({leaves[r.begin].id, r.pos, r.free, r.ref, r.depth}, scratch);
+                write_leaf({leaves[r.begin].id, r.at}, scratch);
                 continue;
             }
             AABB<T> box, centres;
@@ -223,12 +259,9 @@ struct Emitter {
             std::uint32_t left_refs = 0;
             for (std::uint32_t k = r.begin; k < mid; ++k) left_refs += leaves[k].refs;
             const std::uint32_t left_size = 2 * (mid - r.begin) - 1;
-            NodeT& node = nodes[r.pos];
-            node.set_bounds(box);
-            node.index = r.free;
-            node.count = 0;
-            work.push_back({mid, r.end, r.free + 1, r.free + 2 + left_size - 1, r.ref + left_refs, r.depth + 1});
-            work.push_back({r.begin, mid, r.free, r.free + 2, r.ref, r.depth + 1});
+            const auto [lp, rp] = write_inner(r.at, box, left_size, left_refs);
+            work.push_back({mid, r.end, rp});
+            work.push_back({r.begin, mid, lp});
         }
         return deepest;
     }
@@ -252,10 +285,6 @@ void compact_references(Bvh<NodeT, Prim>& bvh) {
     bvh.prim_ids.resize(out);
 }
 
-} // namespace detail
-
-namespace detail {
-
 /// Facts of every inner node of `tree`, bottom-up: starting at nodes whose children are both
 /// references, a walk goes up while the sibling subtree is finished (Karras 2012 style); index
 /// order keeps the walks local in memory. O(n), parallel.
@@ -278,13 +307,7 @@ void compute_node_info(const BinaryTree& tree, const References<T>& refs, const 
         }
         arrivals[i].store(leaves, std::memory_order_relaxed);
     });
-    auto compute = [&](std::uint32_t p) {
-        RawNodeInfo<T> l, r;
-        const std::uint32_t a = tree.left[p], b = tree.right[p];
-        if (BinaryTree::is_leaf(a)) rule.leaf(refs.box[BinaryTree::ref_of(a)], l); else l = info[a];
-        if (BinaryTree::is_leaf(b)) rule.leaf(refs.box[BinaryTree::ref_of(b)], r); else r = info[b];
-        rule.parent(l, r, info[p]);
-    };
+    auto compute = [&](std::uint32_t p) { rule.node(tree, refs, info.data(), p); };
     ex.for_each(0, n_inner, [&](std::size_t i) {
         if (!BinaryTree::is_leaf(tree.left[i]) || !BinaryTree::is_leaf(tree.right[i])) return;
         std::uint32_t p = std::uint32_t(i);
@@ -312,32 +335,30 @@ Bvh<NodeT, Prim> emit_from_info(const BinaryTree& tree, const References<T>& ref
     bvh.nodes.resize(em.size_of(root));
     bvh.prim_ids.resize(n_refs);
 
-    // Split the top of the tree into independent subtrees, then emit those in parallel.
+    // Step 1: write the top of the tree serially until the rest is independent subtrees.
     using Item = typename detail::Emitter<NodeT, T>::Item;
-    std::vector<Item> top, items{{root, 0, 1, 0, 0}};
+    std::vector<Item> top, items{{root, {0, 1, 0, 0}}};
     const std::uint32_t grain = std::max<std::uint32_t>(1024, em.size_of(root) / std::uint32_t(64 * ex.concurrency()));
     std::uint32_t deepest = 0;
     for (std::size_t k = 0; k < items.size(); ++k) {
         const Item it = items[k];
-        if (em.size_of(it.id) <= grain || em.emits_leaf(it.id) || em.must_rebalance(it.id, it.depth)) {
+        if (em.size_of(it.id) <= grain || em.emits_leaf(it.id) || em.must_rebalance(it.id, it.at.depth)) {
             top.push_back(it);
             continue;
         }
-        NodeT& node = bvh.nodes[it.pos];
-        node.set_bounds(info[it.id].box());
-        node.index = it.free;
-        node.count = 0;
-        deepest = std::max(deepest, it.depth);
-        const std::uint32_t l = tree.left[it.id], r = tree.right[it.id];
-        items.push_back({l, it.free, it.free + 2, it.ref, it.depth + 1});
-        items.push_back({r, it.free + 1, it.free + 2 + em.size_of(l) - 1, it.ref + em.refs_of(l), it.depth + 1});
+        deepest = std::max(deepest, it.at.depth);
+        const auto [l, r] = em.split(it);
+        items.push_back(l);
+        items.push_back(r);
     }
+    // Step 2: emit those subtrees in parallel.
     std::vector<std::uint32_t> depths(top.size());
     ex.for_tasks(top.size(), [&](std::size_t k) { depths[k] = em.emit_subtree(top[k]); });
     for (std::uint32_t d : depths) deepest = std::max(deepest, d);
     bvh.depth = deepest;
     if (em.deduplicated.load()) detail::compact_references(bvh);
 
+    // Step 3: the leaf-order copy of the triangles (prim::copied).
     if constexpr (Bvh<NodeT, Prim>::precomputed) {
         bvh.leaf_triangles.resize(bvh.prim_ids.size());
         ex.for_each(0, bvh.prim_ids.size(), [&](std::size_t s) { bvh.leaf_triangles[s] = tris[bvh.prim_ids[s]]; });
@@ -349,6 +370,8 @@ Bvh<NodeT, Prim> emit_from_info(const BinaryTree& tree, const References<T>& ref
 
 } // namespace detail
 
+/// Turns a raw tree over `refs` into the final layout (see the file comment).
+/// For prim::copied the leaf triangles are copied from `tris`. O(n) work, parallel.
 template <class NodeT, class Prim, class T, class Exec>
 Bvh<NodeT, Prim> emit_bvh(const BinaryTree& tree, const References<T>& refs, std::span<const Triangle<T>> tris,
                           const LeafConfig& cfg, const Exec& ex) {

@@ -6,7 +6,7 @@
 #include <cmath>
 #include <numbers>
 
-#include "../io/scene.hpp"
+#include <dynbvh/io/scene.hpp>
 
 namespace dynbvh::scenes {
 

@@ -1,0 +1,116 @@
+// SPDX-License-Identifier: MIT
+/// @file detail/simd.hpp
+/// Platform macros and the SIMD lane wrappers the traversal uses (internal).
+///  - DYNBVH_ALWAYS_INLINE / DYNBVH_NOINLINE: inlining control for the per-box and per-triangle tests.
+///  - DYNBVH_SSE: defined when SSE2 intrinsics are used (every x86-64 compiler: `__SSE2__` or MSVC's
+///    `_M_X64`), unless DYNBVH_NO_SIMD is defined. DYNBVH_AVX: also `__AVX__` (e.g. -mavx2, -march=native).
+///    The library does not choose instruction sets: the user's compiler flags do.
+///  - detail::Lanes4 (SSE), detail::Lanes8 (AVX) and detail::lanes_for<W>: the few float operations the
+///    wide box tests need, so one test body serves every lane width.
+#pragma once
+
+#include <type_traits>
+
+/// Forces inlining of the per-box and per-triangle tests into traversal loops (they are small, and a
+/// call per box costs more than the test).
+/// DYNBVH_NOINLINE keeps rarely taken paths out of those loops.
+#if defined(__GNUC__) || defined(__clang__)
+#if !defined(DYNBVH_ALWAYS_INLINE)
+#define DYNBVH_ALWAYS_INLINE inline __attribute__((always_inline))
+#endif
+#if !defined(DYNBVH_NOINLINE)
+#define DYNBVH_NOINLINE __attribute__((noinline))
+#endif
+#elif defined(_MSC_VER)
+#if !defined(DYNBVH_ALWAYS_INLINE)
+#define DYNBVH_ALWAYS_INLINE __forceinline
+#endif
+#if !defined(DYNBVH_NOINLINE)
+#define DYNBVH_NOINLINE __declspec(noinline)
+#endif
+#else
+#if !defined(DYNBVH_ALWAYS_INLINE)
+#define DYNBVH_ALWAYS_INLINE inline
+#endif
+#if !defined(DYNBVH_NOINLINE)
+#define DYNBVH_NOINLINE
+#endif
+#endif
+
+#if (defined(__SSE2__) || defined(_M_X64)) && !defined(DYNBVH_NO_SIMD)
+#include <immintrin.h>
+#define DYNBVH_SSE 1
+#if defined(__AVX__)
+#define DYNBVH_AVX 1
+#endif
+#endif
+
+#if defined(DYNBVH_SSE)
+namespace dynbvh::detail {
+
+// _mm_max_ps(x, acc) == (x > acc ? x : acc) == max_keep(acc, x), including NaN x and +-0;
+// _mm_min_ps(x, acc) == (x < acc ? x : acc) == min_keep(acc, x). The AVX forms behave alike.
+
+/// The SIMD operations the wide box tests use, on four float lanes (SSE).
+struct Lanes4 {
+    using reg = __m128;
+    static constexpr int n = 4;
+    static DYNBVH_ALWAYS_INLINE reg from4(__m128 x) noexcept { return x; }
+    static DYNBVH_ALWAYS_INLINE reg set1(float x) noexcept { return _mm_set1_ps(x); }
+    static DYNBVH_ALWAYS_INLINE reg load(const float* p) noexcept { return _mm_load_ps(p); }
+    static DYNBVH_ALWAYS_INLINE void store(float* p, reg a) noexcept { _mm_storeu_ps(p, a); }
+    static DYNBVH_ALWAYS_INLINE reg add(reg a, reg b) noexcept { return _mm_add_ps(a, b); }
+    static DYNBVH_ALWAYS_INLINE reg sub(reg a, reg b) noexcept { return _mm_sub_ps(a, b); }
+    static DYNBVH_ALWAYS_INLINE reg mul(reg a, reg b) noexcept { return _mm_mul_ps(a, b); }
+    static DYNBVH_ALWAYS_INLINE reg min(reg a, reg b) noexcept { return _mm_min_ps(a, b); }
+    static DYNBVH_ALWAYS_INLINE reg max(reg a, reg b) noexcept { return _mm_max_ps(a, b); }
+    static DYNBVH_ALWAYS_INLINE reg abs(reg a) noexcept { return _mm_andnot_ps(_mm_set1_ps(-0.0f), a); }
+    /// a * b - c (fused when the compiler targets FMA)
+    static DYNBVH_ALWAYS_INLINE reg fmsub(reg a, reg b, reg c) noexcept {
+#if defined(__FMA__)
+        return _mm_fmsub_ps(a, b, c);
+#else
+        return _mm_sub_ps(_mm_mul_ps(a, b), c);
+#endif
+    }
+    /// Bit k set when a[k] <= b[k] (false for NaN).
+    static DYNBVH_ALWAYS_INLINE unsigned le_mask(reg a, reg b) noexcept { return unsigned(_mm_movemask_ps(_mm_cmple_ps(a, b))); }
+};
+
+#if defined(DYNBVH_AVX)
+/// The same operations on eight float lanes (AVX), for 8-wide nodes.
+struct Lanes8 {
+    using reg = __m256;
+    static constexpr int n = 8;
+    static DYNBVH_ALWAYS_INLINE reg from4(__m128 x) noexcept { return _mm256_insertf128_ps(_mm256_castps128_ps256(x), x, 1); }
+    static DYNBVH_ALWAYS_INLINE reg set1(float x) noexcept { return _mm256_set1_ps(x); }
+    static DYNBVH_ALWAYS_INLINE reg load(const float* p) noexcept { return _mm256_load_ps(p); }
+    static DYNBVH_ALWAYS_INLINE void store(float* p, reg a) noexcept { _mm256_storeu_ps(p, a); }
+    static DYNBVH_ALWAYS_INLINE reg add(reg a, reg b) noexcept { return _mm256_add_ps(a, b); }
+    static DYNBVH_ALWAYS_INLINE reg sub(reg a, reg b) noexcept { return _mm256_sub_ps(a, b); }
+    static DYNBVH_ALWAYS_INLINE reg mul(reg a, reg b) noexcept { return _mm256_mul_ps(a, b); }
+    static DYNBVH_ALWAYS_INLINE reg min(reg a, reg b) noexcept { return _mm256_min_ps(a, b); }
+    static DYNBVH_ALWAYS_INLINE reg max(reg a, reg b) noexcept { return _mm256_max_ps(a, b); }
+    static DYNBVH_ALWAYS_INLINE reg abs(reg a) noexcept { return _mm256_andnot_ps(_mm256_set1_ps(-0.0f), a); }
+    static DYNBVH_ALWAYS_INLINE reg fmsub(reg a, reg b, reg c) noexcept {
+#if defined(__FMA__)
+        return _mm256_fmsub_ps(a, b, c);
+#else
+        return _mm256_sub_ps(_mm256_mul_ps(a, b), c);
+#endif
+    }
+    static DYNBVH_ALWAYS_INLINE unsigned le_mask(reg a, reg b) noexcept {
+        return unsigned(_mm256_movemask_ps(_mm256_cmp_ps(a, b, _CMP_LE_OQ)));
+    }
+};
+/// The widest lanes that divide W: one AVX step per 8-wide node.
+template <int W>
+using lanes_for = std::conditional_t<W % 8 == 0, Lanes8, Lanes4>;
+#else
+/// Without AVX, an 8-wide node takes two SSE steps.
+template <int W>
+using lanes_for = Lanes4;
+#endif
+
+} // namespace dynbvh::detail
+#endif  // DYNBVH_SSE

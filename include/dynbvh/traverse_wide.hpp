@@ -1,0 +1,310 @@
+// SPDX-License-Identifier: MIT
+/// @file traverse_wide.hpp
+/// Closest-hit and any-hit queries of one ray against a `WideBvh` (wide.hpp), with the same policies,
+/// contract and answers as the binary traversal (traverse.hpp), whose leaf test, pop-and-skip step and
+/// fixed/heap stack it shares. Included by wide.hpp: `#include <dynbvh/wide.hpp>` is enough.
+///
+/// Each step tests all W child boxes of a node at once: with SSE (detail/simd.hpp) one instruction per
+/// slab plane for 4 slots, an 8-wide node in two SSE steps or one AVX step; elsewhere (or with
+/// -DDYNBVH_NO_SIMD) a scalar loop over the box policy's own `test_octant`. All paths perform the same
+/// IEEE operations in the same order (max/min operand order chosen so that NaN and +-0 resolve as in
+/// detail::max_keep/min_keep), so all give the same hits. For float rays and box::robust, the per-ray
+/// setup is also done in SSE when it gives exactly box::robust::prepared's values (no subnormal
+/// direction component). The triangle test's setup waits for the first leaf: most primary rays of
+/// open scenes reach none.
+///
+/// Exactness: as in traverse.hpp; `intersect(wide, ...)` returns what `brute_force_intersect` returns
+/// (t to the bit; an exact tie may name another triangle). Hit children are visited nearest first; the
+/// others go on a fixed stack of W - 1 entries per wide level with their entry distance and are skipped
+/// once a closer hit is known. A tree deeper than max_depth, or one whose `depth` is wrong, is traced
+/// with a heap stack that cannot overflow.
+#pragma once
+
+#include <algorithm>
+#include <bit>
+#include <cstddef>
+#include <cstdint>
+#include <limits>
+#include <new>
+#include <span>
+#include <type_traits>
+#include <utility>
+#include <vector>
+
+#include "detail/simd.hpp"
+#include "intersect.hpp"
+#include "traverse.hpp"
+#include "wide.hpp"
+
+namespace dynbvh {
+
+namespace detail {
+
+/// W box tests at once: a bit mask of the slots hit within [tmin, tmax] and their entry distances
+/// (tmax and the distances in the box policy's units, t * p.t_scale, as its test_octant).
+/// This portable version runs the box policy's own test_octant on each slot; WideBoxTest is the
+/// version traversal uses (SSE, or AVX for 8-wide nodes, for float where available, else this one).
+template <class Box, class T>
+struct WideBoxTestScalar {
+    using prepared = typename Box::template prepared<T>;
+    explicit WideBoxTestScalar(const prepared& p) noexcept : p_(p) {}
+    template <int Oct, class I, int W>
+    DYNBVH_ALWAYS_INLINE unsigned test(const WideNode<T, I, W>& n, T tmax, T* tentry) const noexcept {
+        unsigned mask = 0;
+        for (int k = 0; k < W; ++k) {
+            const Vec3<T> lo{n.lo_x[k], n.lo_y[k], n.lo_z[k]}, hi{n.hi_x[k], n.hi_y[k], n.hi_z[k]};
+            mask |= Box::template test_octant<Oct>(p_, lo, hi, tmax, tentry[k]) ? 1u << k : 0u;
+        }
+        return mask;
+    }
+
+private:
+    prepared p_;
+};
+
+template <class Box, class T, int W = 4>
+struct WideBoxTest : WideBoxTestScalar<Box, T> {
+    using WideBoxTestScalar<Box, T>::WideBoxTestScalar;
+};
+
+#if defined(DYNBVH_SSE)
+/// box::robust on W slots, L::n lanes per step.
+template <int W>
+struct WideBoxTest<box::robust, float, W> {
+    using prepared = box::robust::prepared<float>;
+    using L = lanes_for<W>;
+    using R = typename L::reg;
+    explicit WideBoxTest(const prepared& p) noexcept
+        : ox(L::set1(p.org.x)), oy(L::set1(p.org.y)), oz(L::set1(p.org.z)), ix(L::set1(p.inv.x)), iy(L::set1(p.inv.y)),
+          iz(L::set1(p.inv.z)), tmin(L::set1(p.tmin)) {}
+
+    /// The same values as from box::robust::prepared (org, inv = 1 / dir correctly rounded, tmin,
+    /// octant = direction sign bits, t_scale = 1), computed in a few SSE instructions for the common ray:
+    /// traceable and no direction component in (0, FLT_MIN). `ok` is false for any other ray (the
+    /// members are then unspecified and the caller uses box::robust::prepared, which handles it).
+    /// The per-ray setup is a large part of a primary ray's cost, most of which miss early.
+    WideBoxTest(const Ray<float>& r, bool& ok, int& octant) noexcept {
+        const __m128 d = _mm_setr_ps(r.dir.x, r.dir.y, r.dir.z, 1.0f);
+        const __m128 o = _mm_setr_ps(r.org.x, r.org.y, r.org.z, 0.0f);
+        const __m128 sign = _mm_set1_ps(-0.0f), inf = _mm_set1_ps(std::numeric_limits<float>::infinity());
+        const __m128 ad = _mm_andnot_ps(sign, d), ao = _mm_andnot_ps(sign, o);
+        const int finite = _mm_movemask_ps(_mm_and_ps(_mm_cmplt_ps(ad, inf), _mm_cmplt_ps(ao, inf)));  // false for NaN
+        const int tiny = _mm_movemask_ps(_mm_and_ps(_mm_cmpgt_ps(ad, _mm_setzero_ps()),
+                                                    _mm_cmplt_ps(ad, _mm_set1_ps(std::numeric_limits<float>::min()))));
+        const int nonzero = _mm_movemask_ps(_mm_cmpneq_ps(d, _mm_setzero_ps())) & 7;
+        ok = finite == 15 && tiny == 0 && nonzero != 0 && r.tmin <= r.tmax;
+        const __m128 inv = _mm_div_ps(_mm_set1_ps(1.0f), d);
+        octant = _mm_movemask_ps(d) & 7;
+        ox = L::from4(_mm_shuffle_ps(o, o, 0x00));
+        oy = L::from4(_mm_shuffle_ps(o, o, 0x55));
+        oz = L::from4(_mm_shuffle_ps(o, o, 0xaa));
+        ix = L::from4(_mm_shuffle_ps(inv, inv, 0x00));
+        iy = L::from4(_mm_shuffle_ps(inv, inv, 0x55));
+        iz = L::from4(_mm_shuffle_ps(inv, inv, 0xaa));
+        tmin = L::set1(r.tmin);
+    }
+    template <int Oct, class I>
+    DYNBVH_ALWAYS_INLINE unsigned test(const WideNode<float, I, W>& n, float tmax, float* tentry) const noexcept {
+        unsigned mask = 0;
+        for (int h = 0; h < W; h += L::n) {
+            const R x0 = L::mul(L::sub(L::load((Oct & 1 ? n.hi_x : n.lo_x) + h), ox), ix);
+            const R x1 = L::mul(L::sub(L::load((Oct & 1 ? n.lo_x : n.hi_x) + h), ox), ix);
+            const R y0 = L::mul(L::sub(L::load((Oct & 2 ? n.hi_y : n.lo_y) + h), oy), iy);
+            const R y1 = L::mul(L::sub(L::load((Oct & 2 ? n.lo_y : n.hi_y) + h), oy), iy);
+            const R z0 = L::mul(L::sub(L::load((Oct & 4 ? n.hi_z : n.lo_z) + h), oz), iz);
+            const R z1 = L::mul(L::sub(L::load((Oct & 4 ? n.lo_z : n.hi_z) + h), oz), iz);
+            const R tn = L::max(z0, L::max(y0, L::max(x0, tmin)));
+            R tf = L::min(z1, L::min(y1, L::min(x1, L::set1(tmax))));
+            tf = L::add(tf, L::mul(L::set1(2.0f * rounding_gamma<float>(3)), L::abs(tf)));   // box::robust::widen
+            L::store(tentry + h, tn);
+            mask |= L::le_mask(tn, tf) << h;
+        }
+        return mask;
+    }
+
+private:
+    R ox, oy, oz, ix, iy, iz, tmin;
+};
+
+/// box::fast on W slots, L::n lanes per step.
+template <int W>
+struct WideBoxTest<box::fast, float, W> {
+    using prepared = box::fast::prepared<float>;
+    using L = lanes_for<W>;
+    using R = typename L::reg;
+    explicit WideBoxTest(const prepared& p) noexcept
+        : ix(L::set1(p.inv.x)), iy(L::set1(p.inv.y)), iz(L::set1(p.inv.z)), oix(L::set1(p.org_inv.x)),
+          oiy(L::set1(p.org_inv.y)), oiz(L::set1(p.org_inv.z)), tmin(L::set1(p.tmin)) {}
+    template <int Oct, class I>
+    DYNBVH_ALWAYS_INLINE unsigned test(const WideNode<float, I, W>& n, float tmax, float* tentry) const noexcept {
+        unsigned mask = 0;
+        for (int h = 0; h < W; h += L::n) {
+            const R x0 = L::fmsub(L::load((Oct & 1 ? n.hi_x : n.lo_x) + h), ix, oix);
+            const R x1 = L::fmsub(L::load((Oct & 1 ? n.lo_x : n.hi_x) + h), ix, oix);
+            const R y0 = L::fmsub(L::load((Oct & 2 ? n.hi_y : n.lo_y) + h), iy, oiy);
+            const R y1 = L::fmsub(L::load((Oct & 2 ? n.lo_y : n.hi_y) + h), iy, oiy);
+            const R z0 = L::fmsub(L::load((Oct & 4 ? n.hi_z : n.lo_z) + h), iz, oiz);
+            const R z1 = L::fmsub(L::load((Oct & 4 ? n.lo_z : n.hi_z) + h), iz, oiz);
+            const R tn = L::max(z0, L::max(y0, L::max(x0, tmin)));
+            const R tf = L::min(z1, L::min(y1, L::min(x1, L::set1(tmax))));
+            L::store(tentry + h, tn);
+            mask |= L::le_mask(tn, tf) << h;
+        }
+        return mask;
+    }
+
+private:
+    R ix, iy, iz, oix, oiy, oiz, tmin;
+};
+#endif  // DYNBVH_SSE
+
+template <class Index, class T>
+struct WideStackEntry {
+    Index child;   ///< node index (count 0) or first prim_ids slot (count > 0)
+    Index count;
+    T tentry;
+};
+
+/// The wide traversal loop for one direction octant; same contract as traverse_octant (traverse.hpp).
+/// Box distances are in box::robust's units (t * t_scale). The triangle test's per-ray setup is
+/// done when the first leaf is reached: most primary rays of an open scene never reach one.
+template <class Policy, bool AnyHit, int Oct, class WN, class P, class S = typename WN::scalar_type,
+          class I = typename WN::index_type, int W = WN::width>
+bool wide_traverse_octant(const WideBvh<WN, P>& bvh, std::span<const Triangle<S>> tris, const Ray<S>& ray,
+                          const S t_scale,
+                          const WideBoxTest<typename Policy::box_test, S, W> wb, Hit<S>& hit,
+                          WideStackEntry<I, S>* const stack, const std::size_t cap) {
+    using Box = typename Policy::box_test;
+    using Tri = typename Policy::triangle_test;
+    using Entry = WideStackEntry<I, S>;
+    using WB = WideBvh<WN, P>;
+
+    const WN* const nodes = bvh.nodes.data();
+    const I* const ids = bvh.prim_ids.data();
+    const Triangle<S>* const leaf_tris = WB::precomputed ? bvh.leaf_triangles.data() : tris.data();
+    // The triangle test's setup, made at the first leaf. (Not std::optional: GCC zero-fills its storage
+    // with `rep stos` on every ray, a tenth of a primary ray's cost when most rays reach no leaf.)
+    using TriPrepared = typename Tri::template prepared<S>;
+    static_assert(std::is_trivially_destructible_v<TriPrepared>);
+    union LazyPrepared {
+        LazyPrepared() noexcept {}
+        TriPrepared value;
+    } pt;
+    bool have_pt = false;
+
+    S tmax = ray.tmax;
+    S tbox = tmax * t_scale;   // tmax in box units
+    std::size_t sp = 0;
+    std::size_t best_slot = ~std::size_t(0);
+    I cur = 0, cur_count = 0;
+    for (;;) {
+        if (cur_count == 0) {
+            const WN& n = nodes[cur];
+            alignas(32) S t[W];
+            unsigned mask = wb.template test<Oct>(n, tbox, t);
+            if (mask != 0) {
+                const int a = std::countr_zero(mask);
+                mask &= mask - 1;
+                if (mask == 0) {   // one child hit: go there
+                    cur = n.child[a];
+                    cur_count = n.count[a];
+                    continue;
+                }
+                const int b = std::countr_zero(mask);
+                mask &= mask - 1;
+                if (mask == 0) {   // two: the nearer now, the farther on the stack
+                    if (sp + 1 > cap) [[unlikely]] return false;
+                    const bool swap = t[b] < t[a];
+                    const int near = swap ? b : a, far = swap ? a : b;
+                    stack[sp++] = Entry{n.child[far], n.count[far], t[far]};
+                    cur = n.child[near];
+                    cur_count = n.count[near];
+                    continue;
+                }
+                // Three or more: sort by entry distance, push all but the nearest, farthest first.
+                if (sp + (W - 1) > cap) [[unlikely]] return false;
+                int order[W] = {a, b};
+                int m = 2;
+                for (; mask != 0; mask &= mask - 1) order[m++] = std::countr_zero(mask);
+                for (int i = 1; i < m; ++i)
+                    for (int j = i; j > 0 && t[order[j]] < t[order[j - 1]]; --j) std::swap(order[j], order[j - 1]);
+                for (int i = m - 1; i > 0; --i) stack[sp++] = Entry{n.child[order[i]], n.count[order[i]], t[order[i]]};
+                cur = n.child[order[0]];
+                cur_count = n.count[order[0]];
+                continue;
+            }
+        } else {
+            if (!have_pt) [[unlikely]] {
+                ::new (static_cast<void*>(&pt.value)) TriPrepared(ray);
+                have_pt = true;
+            }
+            if (test_leaf<Tri, AnyHit, WB::precomputed>(pt.value, leaf_tris, ids, cur, std::size_t(cur) + cur_count, t_scale, tmax,
+                                                        tbox, best_slot, hit))
+                return true;
+        }
+        // Pop the next subtree that can still hold a closer hit.
+        Entry next;
+        if (!pop_closer<Box>(stack, sp, tbox, next)) {
+            if (best_slot != ~std::size_t(0)) hit.prim = static_cast<std::uint32_t>(ids[best_slot]);
+            return true;
+        }
+        cur = next.child;
+        cur_count = next.count;
+    }
+}
+
+/// Stack and octant dispatch around wide_traverse_octant for a prepared ray.
+template <class Policy, bool AnyHit, class WN, class P, class S = typename WN::scalar_type, class I = typename WN::index_type,
+          int W = WN::width>
+Hit<S> wide_run(const WideBvh<WN, P>& bvh, std::span<const Triangle<S>> tris, const Ray<S>& ray,
+                const WideBoxTest<typename Policy::box_test, S, W>& wb, S t_scale, int octant) {
+    using Entry = WideStackEntry<I, S>;
+    auto run = [&](Entry* stack, std::size_t cap, Hit<S>& hit) {
+        return dispatch_octant(octant, [&](auto oct) {
+            return wide_traverse_octant<Policy, AnyHit, decltype(oct)::value>(bvh, tris, ray, t_scale, wb, hit, stack, cap);
+        });
+    };
+    // At most W - 1 entries per wide level: wide depth < binary depth <= max_depth.
+    constexpr std::size_t fixed_cap = std::size_t(W - 1) * std::size_t(max_depth);
+    // Heap fallback: each node's children are pushed at most once, W - 1 entries per node.
+    return run_with_stack<Entry, fixed_cap, S>(bvh.depth < max_depth, std::size_t(W - 1) * (bvh.nodes.size() + 1), run);
+}
+
+template <class Policy, bool AnyHit, class WN, class P, class S = typename WN::scalar_type, class I = typename WN::index_type,
+          int W = WN::width>
+Hit<S> wide_traverse(const WideBvh<WN, P>& bvh, std::span<const Triangle<S>> tris, const Ray<S>& ray) {
+    using Box = typename Policy::box_test;
+    if (bvh.nodes.empty()) return {};
+#if defined(DYNBVH_SSE)
+    if constexpr (std::is_same_v<Box, box::robust> && std::is_same_v<S, float>) {
+        bool ok;
+        int octant;
+        const WideBoxTest<Box, S, W> wb(ray, ok, octant);
+        if (ok) [[likely]] return wide_run<Policy, AnyHit>(bvh, tris, ray, wb, S(1), octant);
+    }
+#endif
+    // No separate traceable() check: the prepared ray of a ray that is not traceable has a NaN tmin,
+    // so every box test misses and no leaf is reached (tests cover it).
+    const typename Box::template prepared<S> pb(ray);
+    return wide_run<Policy, AnyHit>(bvh, tris, ray, WideBoxTest<Box, S, W>(pb), pb.t_scale, pb.octant);
+}
+
+} // namespace detail
+
+/// Closest hit in a wide BVH; same contract as intersect(Bvh, ...) in traverse.hpp.
+template <class Policy = trace::robust, class WN, class P, class S = typename WN::scalar_type>
+Hit<S> intersect(const WideBvh<WN, P>& bvh, std::type_identity_t<std::span<const Triangle<S>>> tris,
+                 const std::type_identity_t<Ray<S>>& ray) {
+    detail::check_triangles(bvh, tris.size(), "intersect", !WideBvh<WN, P>::precomputed);
+    return detail::wide_traverse<Policy, false>(bvh, tris, ray);
+}
+
+/// Any hit in a wide BVH; same contract as occluded(Bvh, ...) in traverse.hpp.
+template <class Policy = trace::robust, class WN, class P, class S = typename WN::scalar_type>
+bool occluded(const WideBvh<WN, P>& bvh, std::type_identity_t<std::span<const Triangle<S>>> tris,
+              const std::type_identity_t<Ray<S>>& ray) {
+    detail::check_triangles(bvh, tris.size(), "occluded", !WideBvh<WN, P>::precomputed);
+    return static_cast<bool>(detail::wide_traverse<Policy, true>(bvh, tris, ray));
+}
+
+} // namespace dynbvh
