@@ -2,7 +2,7 @@
 // test (Ize 2013 vs plain slabs) and the watertight and the fast triangle test (Woop et al. 2013 vs
 // Möller–Trumbore), in every combination, on the same tree and the same rays, one thread. Also the
 // bare tests (ns per box or triangle test) outside traversal. Ratios from this very run are printed
-// at the end.
+// at the end; and the SIMD triangle-block tests (detail/triangle_block.hpp) on the same triangles.
 //
 //   dynbvh-bench-robustness [google benchmark flags]   (--help lists them)
 //
@@ -22,6 +22,7 @@
 #include <string>
 #include <vector>
 
+#include <dynbvh/detail/triangle_block.hpp>
 #include <dynbvh/intersect.hpp>
 #include <dynbvh/io/ply.hpp>
 #include <dynbvh/ploc.hpp>
@@ -193,6 +194,50 @@ void BM_triangle(benchmark::State& state) {
     state.counters["hit%"] = 100.0 * double(hit) / double(n);
 }
 
+/// The same 32 triangles per ray as BM_triangle, in 32 / L SIMD blocks of L lanes (detail/triangle_block.hpp),
+/// through the block test traversal uses (per_test: per triangle, so directly comparable with BM_triangle).
+template <class Tri, int L>
+void BM_triangle_block(benchmark::State& state) {
+    const Scene& s = scene(0);
+    const auto& rays = s.camera_rays;
+    std::vector<Trianglef> leaf_order;
+    for (auto id : s.bvh.prim_ids) leaf_order.push_back(s.tris[id]);
+    const std::size_t groups = leaf_order.size() / 32;   // runs of 32 slots, each 32 / L blocks
+    std::vector<std::size_t> slot_of(s.tris.size(), 0);
+    for (std::size_t k = 0; k < s.bvh.prim_ids.size(); ++k) slot_of[s.bvh.prim_ids[k]] = k;
+    std::vector<std::size_t> start(rays.size(), 0);   // the run holding the closest hit (as BM_triangle)
+    for (std::size_t i = 0; i < rays.size(); ++i) {
+        const Hitf h = intersect(s.bvh, s.tris, rays[i]);
+        start[i] = h ? std::min(slot_of[h.prim] / 32, groups - 1) : (i * 131) % groups;
+    }
+    std::vector<detail::LeafRange> runs(groups * (32 / L));
+    for (std::size_t k = 0; k < runs.size(); ++k) runs[k] = {k * L, std::size_t(L)};
+    std::vector<std::uint32_t> ids(leaf_order.size());
+    for (std::size_t k = 0; k < ids.size(); ++k) ids[k] = std::uint32_t(k);
+    scratch_vector<detail::TriangleBlock<L>> blocks;
+    std::vector<std::size_t> first;
+    detail::pack_triangle_blocks<L>(std::span<const detail::LeafRange>(runs), std::span<const std::uint32_t>(ids),
+                                    [&](std::size_t slot) -> const Trianglef& { return leaf_order[slot]; }, blocks, first);
+    std::size_t n = 0, hit = 0;
+    for (auto _ : state) {
+        n = 0;
+        hit = 0;
+        for (std::size_t i = 0; i < rays.size(); i += 2) {
+            const detail::BlockTest<Tri, L> bt(rays[i]);
+            float tmax = rays[i].tmax, tbox = tmax;
+            std::uint32_t best = invalid_prim;
+            Hitf h;
+            bt.template test<false>(blocks.data(), start[i] * (32 / L), (start[i] + 1) * (32 / L), 1.0f, tmax, tbox, best, h);
+            hit += best != invalid_prim ? 1 : 0;
+            n += 32;
+        }
+        benchmark::DoNotOptimize(hit);
+    }
+    state.counters["per_test"] = benchmark::Counter(double(n) * double(state.iterations()),
+                                                    benchmark::Counter::kIsRate | benchmark::Counter::kInvert);
+    state.counters["hit%"] = 100.0 * double(hit) / double(n / 32);
+}
+
 using robust_box_watertight = trace::robust;
 using fast_box_watertight = trace::policy<box::fast, tri::watertight>;
 using robust_box_mt = trace::policy<box::robust, tri::moller_trumbore>;
@@ -234,6 +279,11 @@ public:
         std::printf("\nBare tests (ns per test; robust vs fast):\n");
         ratio("box/robust", "box/fast");
         ratio("triangle/watertight", "triangle/moller_trumbore");
+        std::printf("\nSIMD triangle blocks (ns per triangle; block vs one at a time):\n");
+        ratio("triangle/watertight blocks8", "triangle/watertight");
+        ratio("triangle/watertight blocks4", "triangle/watertight");
+        ratio("triangle/moller_trumbore blocks8", "triangle/moller_trumbore");
+        ratio("triangle/moller_trumbore blocks4", "triangle/moller_trumbore");
         std::printf("box cost = (robust box + watertight) / (fast box + watertight); tri cost = (robust box + watertight) "
                     "/ (robust box + Möller–Trumbore)\n");
     }
@@ -260,6 +310,10 @@ void register_all() {
     benchmark::RegisterBenchmark("box/fast", BM_box<box::fast>)->Unit(benchmark::kMillisecond);
     benchmark::RegisterBenchmark("triangle/watertight", BM_triangle<tri::watertight>)->Unit(benchmark::kMillisecond);
     benchmark::RegisterBenchmark("triangle/moller_trumbore", BM_triangle<tri::moller_trumbore>)->Unit(benchmark::kMillisecond);
+    benchmark::RegisterBenchmark("triangle/watertight blocks8", BM_triangle_block<tri::watertight, 8>)->Unit(benchmark::kMillisecond);
+    benchmark::RegisterBenchmark("triangle/watertight blocks4", BM_triangle_block<tri::watertight, 4>)->Unit(benchmark::kMillisecond);
+    benchmark::RegisterBenchmark("triangle/moller_trumbore blocks8", BM_triangle_block<tri::moller_trumbore, 8>)->Unit(benchmark::kMillisecond);
+    benchmark::RegisterBenchmark("triangle/moller_trumbore blocks4", BM_triangle_block<tri::moller_trumbore, 4>)->Unit(benchmark::kMillisecond);
     if (!bunny) std::fprintf(stderr, "dynbvh-bench-robustness: %s is absent, bunny skipped\n", bunny_path.c_str());
 }
 

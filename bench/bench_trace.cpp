@@ -14,6 +14,9 @@
 // Rays: one per pixel through the pixel centre, tiles of 16x16 pixels handed to OpenMP threads
 // dynamically (Embree's device gets the same thread count). Each rep traces every method once
 // (interleaved, so load from other processes hits all alike); the figure is the median over reps.
+// Block-leaf trees (wide_blocks.hpp): "wide8 blk" = binary trees built with block_leaves (Ci 0.5,
+// fuller leaves) converted to 8-wide nodes with leaves in SIMD blocks of 8 triangles; "w8 blk8 dfl" /
+// "w8 blk4 dfl" = the default-leaf PLOC tree with blocks of 8 / 4 (the same hits as "ploc wide8").
 // Also printed: SAH (Ct = 3, Ci = 2) of each tree (binary and wide), build and conversion time
 // (median, at the largest thread count), and hit agreement with the binary traversal.
 #include <algorithm>
@@ -33,6 +36,7 @@
 #include <scenes/builtin.hpp>
 #include <dynbvh/traverse.hpp>
 #include <dynbvh/wide.hpp>
+#include <dynbvh/wide_blocks.hpp>
 
 #include "cli.hpp"
 #include "embree_bvh.hpp"
@@ -167,7 +171,7 @@ int main(int argc, char** argv) {
         auto pl = ploc::build(tris, {.radius = 5, .leaves = leaves}, bex);
         auto sb = binned_sah::build(tris, {.leaves = leaves}, bex);
         auto plp = ploc::build<Node<>, prim::copied>(tris, {.radius = 5, .leaves = leaves}, bex);
-        std::vector<double> t_lbvh, t_conv, t_conv_ploc, t_lbvh1, t_conv1, t_conv8;
+        std::vector<double> t_lbvh, t_conv, t_conv_ploc, t_lbvh1, t_conv1, t_conv8, t_conv8b;
         for (int r = 0; r < std::max(reps, 5); ++r) {
             auto t0 = Clock::now();
             auto b = lbvh::build(tris, {.leaves = leaves}, bex);
@@ -178,6 +182,9 @@ int main(int argc, char** argv) {
             t0 = Clock::now();
             auto w8 = make_wide<8>(b, bex);
             t_conv8.push_back(ms_since(t0));
+            t0 = Clock::now();
+            auto w8b = make_wide_blocks<8>(b, tris, bex);
+            t_conv8b.push_back(ms_since(t0));
             t0 = Clock::now();
             auto w2 = make_wide(pl, bex);
             t_conv_ploc.push_back(ms_since(t0));
@@ -191,6 +198,15 @@ int main(int argc, char** argv) {
         const auto lw = make_wide(lb, bex), pw = make_wide(pl, bex), sw = make_wide(sb, bex);
         const auto pwp = make_wide(plp, bex);
         const auto lw8 = make_wide<8>(lb, bex), pw8 = make_wide<8>(pl, bex), sw8 = make_wide<8>(sb, bex);
+        // block trees: binary trees built with block_leaves (wide_blocks.hpp) in blocks of 8, and the
+        // default-leaf PLOC tree in blocks of 8 and 4 ("dfl")
+        LeafConfig bleaves = block_leaves;
+        bleaves.max_leaf_size = std::max<std::uint32_t>(max_leaf, 1);
+        const auto lbk = make_wide_blocks<8>(lbvh::build(tris, {.leaves = bleaves}, bex), tris, bex);
+        const auto pbk = make_wide_blocks<8>(ploc::build(tris, {.radius = 5, .leaves = bleaves}, bex), tris, bex);
+        const auto sbk = make_wide_blocks<8>(binned_sah::build(tris, {.leaves = bleaves}, bex), tris, bex);
+        const auto pw8b8 = make_wide_blocks<8, 8>(pl, tris, bex);
+        const auto pw8b4 = make_wide_blocks<8, 4>(pl, tris, bex);
 
         bench::EmbreeBvh elow(build_threads, bench::EmbreeMode::low), emed(build_threads, bench::EmbreeMode::medium);
         elow.update(tris);
@@ -220,6 +236,15 @@ int main(int argc, char** argv) {
         add("ploc wide8", [&](const Rayf& r) { return intersect(pw8, tris, r).prim; });
         add("sah wide8", [&](const Rayf& r) { return intersect(sw8, tris, r).prim; });
         add("ploc wide8 fast", [&](const Rayf& r) { return intersect<trace::fast>(pw8, tris, r).prim; });
+        // 8-wide nodes with SIMD triangle-block leaves (wide_blocks.hpp)
+        add("lbvh wide8 blk", [&](const Rayf& r) { return intersect(lbk, tris, r).prim; });
+        add("ploc wide8 blk", [&](const Rayf& r) { return intersect(pbk, tris, r).prim; });
+        add("sah wide8 blk", [&](const Rayf& r) { return intersect(sbk, tris, r).prim; });
+        add("ploc wide8 blk fast", [&](const Rayf& r) { return intersect<trace::fast>(pbk, tris, r).prim; });
+        add("sah wide8 blk fast", [&](const Rayf& r) { return intersect<trace::fast>(sbk, tris, r).prim; });
+        add("ploc w8 blk8 dfl", [&](const Rayf& r) { return intersect(pw8b8, tris, r).prim; });
+        add("ploc w8 blk4 dfl", [&](const Rayf& r) { return intersect(pw8b4, tris, r).prim; });
+        add("ploc w8 blk4 dfl fast", [&](const Rayf& r) { return intersect<trace::fast>(pw8b4, tris, r).prim; });
 
         // Agreement: wide vs binary on the same tree (robust: must be identical up to exact ties).
         std::vector<std::uint32_t> a(nrays), b(nrays), e(nrays);
@@ -237,6 +262,17 @@ int main(int argc, char** argv) {
             for (std::size_t i = 0; i < nrays; ++i) diff += a[i] != b[i];
             agree += "/" + std::to_string(diff);
         }
+        // the block-leaf trees of the same PLOC tree: the same hits as its 8-wide tree
+        for (const char* pair : {"ploc w8 blk8 dfl", "ploc w8 blk4 dfl"}) {
+            const auto it = std::find_if(methods.begin(), methods.end(), [&](const Method& m) { return m.name == pair; });
+            const auto w8it = std::find_if(methods.begin(), methods.end(), [&](const Method& m) { return m.name == "ploc wide8"; });
+            it->trace(gen, build_threads, a);
+            w8it->trace(gen, build_threads, b);
+            std::size_t diff = 0;
+            for (std::size_t i = 0; i < nrays; ++i) diff += a[i] != b[i];
+            agree += std::string(" ") + pair + ":" + std::to_string(diff);
+        }
+        methods[2].trace(gen, build_threads, a);   // lbvh binary, for the hit count below
         methods[0].trace(gen, build_threads, e);
         std::size_t emb_diff = 0;
         for (std::size_t i = 0; i < nrays; ++i) {
@@ -253,27 +289,27 @@ int main(int argc, char** argv) {
                     m.ms[ti].push_back(ms_since(t0));
                 }
 
-        std::printf("\n== %s: %zu triangles, %zu rays, %.1f%% hit; wide!=binary rays (4-wide/8-wide):%s; hit/miss differs from embree-low on %zu rays\n",
+        std::printf("\n== %s: %zu triangles, %zu rays, %.1f%% hit; wide!=binary rays (4-wide/8-wide; block trees != 8-wide):%s; hit/miss differs from embree-low on %zu rays\n",
                     sname.c_str(), tris.size(), nrays, 100.0 * double(hits) / double(nrays), agree.c_str(), emb_diff);
         const SahCost sc3{.ct = 3, .ci = 2};
         std::printf("   SAH binary/wide: lbvh %.2f/%.2f  ploc %.2f/%.2f  sah %.2f/%.2f;  wide nodes (depth) lbvh %zu (%u) ploc %zu (%u) sah %zu (%u)\n",
                     sah_cost(lb, sc3), sah_cost(lw, sc3), sah_cost(pl, sc3), sah_cost(pw, sc3), sah_cost(sb, sc3),
                     sah_cost(sw, sc3), lw.nodes.size(), lw.depth, pw.nodes.size(), pw.depth, sw.nodes.size(), sw.depth);
         std::printf("   SAH 8-wide: lbvh %.2f  ploc %.2f  sah %.2f;  8-wide nodes (depth) lbvh %zu (%u) ploc %zu (%u) sah %zu (%u); "
-                    "8-wide conversion of lbvh %.3f ms\n",
+                    "8-wide conversion of lbvh %.3f ms, with 8-lane block leaves %.3f ms\n",
                     sah_cost(lw8, sc3), sah_cost(pw8, sc3), sah_cost(sw8, sc3), lw8.nodes.size(), lw8.depth, pw8.nodes.size(),
-                    pw8.depth, sw8.nodes.size(), sw8.depth, median(t_conv8));
+                    pw8.depth, sw8.nodes.size(), sw8.depth, median(t_conv8), median(t_conv8b));
         const double ml = median(t_lbvh), mc = median(t_conv), mcp = median(t_conv_ploc);
         const double ml1 = median(t_lbvh1), mc1 = median(t_conv1);
         std::printf("   build (%d threads): lbvh %.2f ms, wide conversion %.3f ms (%.1f%% of lbvh), of ploc tree %.3f ms;"
                     " serial: lbvh %.2f ms, conversion %.3f ms (%.1f%%)\n",
                     build_threads, ml, mc, 100.0 * mc / ml, mcp, ml1, mc1, 100.0 * mc1 / ml1);
-        std::printf("   %-18s", "method");
+        std::printf("   %-22s", "method");
         for (int th : thread_counts) std::printf(" | %2d thr: Mrays/s  /low  /med", th);
         std::printf("\n");
         for (const auto& m : methods) {
             if (m.ms[0].empty()) continue;
-            std::printf("   %-18s", m.name.c_str());
+            std::printf("   %-22s", m.name.c_str());
             for (std::size_t ti = 0; ti < thread_counts.size(); ++ti) {
                 const double mr = double(nrays) / median(m.ms[ti]) * 1e-3;
                 const double lo = double(nrays) / median(methods[0].ms[ti]) * 1e-3;

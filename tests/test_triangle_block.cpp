@@ -326,7 +326,7 @@ void check_adversarial() {
         t.tris = test::long_thin(300, 4);
         check_scene<Tri, L>(t, 1500, 12);
     }
-#if defined(DYNBVH_BLOCK_SSE)
+#if defined(DYNBVH_SSE)
     if constexpr (std::is_same_v<Tri, tri::watertight>) {
         // The filter must do its job: most lanes of ordinary rays are rejected in SIMD.
         MESSAGE("unit grid: filter rejected " << rejected << " of " << lanes << " lanes");
@@ -394,9 +394,9 @@ TEST_CASE("watertight block test == scalar loop bit for bit on adversarial trian
     check_adversarial<tri::watertight, 4>();
 }
 TEST_CASE("watertight block test == scalar loop bit for bit on adversarial triangles (8 lanes)") {
-#if defined(DYNBVH_BLOCK_AVX)
+#if defined(DYNBVH_AVX)
     MESSAGE("8-lane blocks tested with AVX");
-#elif defined(DYNBVH_BLOCK_SSE)
+#elif defined(DYNBVH_SSE)
     MESSAGE("8-lane blocks tested in two SSE steps");
 #else
     MESSAGE("no SIMD: the scalar block loop");

@@ -43,6 +43,8 @@ struct LeafPart {
     using triangle_type = Triangle<Scalar>;
     /// Whether leaves read `leaf_triangles` (prim::copied) instead of the user's array.
     static constexpr bool precomputed = std::is_same_v<PrimPolicy, prim::copied>;
+    /// Lanes of the triangle blocks leaves are made of (prim::blocks<L>, wide_blocks.hpp); 0: none.
+    static constexpr int block_lanes = 0;
 
     /// Leaf slot -> index of the user's triangle. A triangle split by presplitting may appear in several
     /// leaves, but at most once per leaf. Large blocks come from the scratch cache (detail/scratch.hpp).

@@ -32,6 +32,7 @@
 #include <vector>
 
 #include "detail/simd.hpp"
+#include "detail/triangle_block.hpp"
 #include "intersect.hpp"
 #include "traverse.hpp"
 #include "wide.hpp"
@@ -182,9 +183,11 @@ bool wide_traverse_octant(const WideBvh<WN, P>& bvh, std::span<const Triangle<S>
     const WN* const nodes = bvh.nodes.data();
     const I* const ids = bvh.prim_ids.data();
     const Triangle<S>* const leaf_tris = WB::precomputed ? bvh.leaf_triangles.data() : tris.data();
+    constexpr int BL = WB::block_lanes;   // > 0: leaves are triangle blocks (wide_blocks.hpp)
     // The triangle test's setup, made at the first leaf. (Not std::optional: GCC zero-fills its storage
     // with `rep stos` on every ray, a tenth of a primary ray's cost when most rays reach no leaf.)
-    using TriPrepared = typename Tri::template prepared<S>;
+    using TriPrepared =
+        std::conditional_t<(BL > 0), BlockTest<Tri, (BL > 0 ? BL : 4)>, typename Tri::template prepared<S>>;
     static_assert(std::is_trivially_destructible_v<TriPrepared>);
     union LazyPrepared {
         LazyPrepared() noexcept {}
@@ -196,6 +199,7 @@ bool wide_traverse_octant(const WideBvh<WN, P>& bvh, std::span<const Triangle<S>
     S tbox = tmax * t_scale;   // tmax in box units
     std::size_t sp = 0;
     std::size_t best_slot = ~std::size_t(0);
+    std::uint32_t best_prim = invalid_prim;   // (block leaves name the user's triangle directly)
     I cur = 0, cur_count = 0;
     for (;;) {
         if (cur_count == 0) {
@@ -238,14 +242,21 @@ bool wide_traverse_octant(const WideBvh<WN, P>& bvh, std::span<const Triangle<S>
                 ::new (static_cast<void*>(&pt.value)) TriPrepared(ray);
                 have_pt = true;
             }
-            if (test_leaf<Tri, AnyHit, WB::precomputed>(pt.value, leaf_tris, ids, cur, std::size_t(cur) + cur_count, t_scale, tmax,
-                                                        tbox, best_slot, hit))
-                return true;
+            if constexpr (BL > 0) {   // a leaf slot: first block, number of triangles
+                if (pt.value.template test<AnyHit>(bvh.blocks.data(), cur, std::size_t(cur) + blocks_for<BL>(cur_count), t_scale,
+                                                   tmax, tbox, best_prim, hit))
+                    return true;
+            } else {
+                if (test_leaf<Tri, AnyHit, WB::precomputed>(pt.value, leaf_tris, ids, cur, std::size_t(cur) + cur_count, t_scale,
+                                                            tmax, tbox, best_slot, hit))
+                    return true;
+            }
         }
         // Pop the next subtree that can still hold a closer hit.
         Entry next;
         if (!pop_closer<Box>(stack, sp, tbox, next)) {
-            if (best_slot != ~std::size_t(0)) hit.prim = static_cast<std::uint32_t>(ids[best_slot]);
+            if constexpr (BL > 0) hit.prim = best_prim;
+            else if (best_slot != ~std::size_t(0)) hit.prim = static_cast<std::uint32_t>(ids[best_slot]);
             return true;
         }
         cur = next.child;

@@ -6,7 +6,7 @@
 ///    `_M_X64`), unless DYNBVH_NO_SIMD is defined. DYNBVH_AVX: also `__AVX__` (e.g. -mavx2, -march=native).
 ///    The library does not choose instruction sets: the user's compiler flags do.
 ///  - detail::Lanes4 (SSE), detail::Lanes8 (AVX) and detail::lanes_for<W>: the few float operations the
-///    wide box tests need, so one test body serves every lane width.
+///    wide box tests and the triangle-block tests need, so one test body serves every lane width.
 #pragma once
 
 #include <type_traits>
@@ -75,6 +75,27 @@ struct Lanes4 {
     }
     /// Bit k set when a[k] <= b[k] (false for NaN).
     static DYNBVH_ALWAYS_INLINE unsigned le_mask(reg a, reg b) noexcept { return unsigned(_mm_movemask_ps(_mm_cmple_ps(a, b))); }
+    // For the triangle-block tests (detail/triangle_block.hpp):
+    static DYNBVH_ALWAYS_INLINE reg div(reg a, reg b) noexcept { return _mm_div_ps(a, b); }
+    /// a * b + c, fused when the compiler targets FMA (only where either rounding will do)
+    static DYNBVH_ALWAYS_INLINE reg madd(reg a, reg b, reg c) noexcept {
+#if defined(__FMA__)
+        return _mm_fmadd_ps(a, b, c);
+#else
+        return _mm_add_ps(_mm_mul_ps(a, b), c);
+#endif
+    }
+    static DYNBVH_ALWAYS_INLINE reg neg(reg a) noexcept { return _mm_xor_ps(_mm_set1_ps(-0.0f), a); }
+    static DYNBVH_ALWAYS_INLINE reg band(reg a, reg b) noexcept { return _mm_and_ps(a, b); }
+    static DYNBVH_ALWAYS_INLINE reg bor(reg a, reg b) noexcept { return _mm_or_ps(a, b); }
+    /// Lane masks of ordered comparisons (false when either side is NaN); ne is true for NaN.
+    static DYNBVH_ALWAYS_INLINE reg gt(reg a, reg b) noexcept { return _mm_cmpgt_ps(a, b); }
+    static DYNBVH_ALWAYS_INLINE reg lt(reg a, reg b) noexcept { return _mm_cmplt_ps(a, b); }
+    static DYNBVH_ALWAYS_INLINE reg ge(reg a, reg b) noexcept { return _mm_cmpge_ps(a, b); }
+    static DYNBVH_ALWAYS_INLINE reg le(reg a, reg b) noexcept { return _mm_cmple_ps(a, b); }
+    static DYNBVH_ALWAYS_INLINE reg ne(reg a, reg b) noexcept { return _mm_cmpneq_ps(a, b); }
+    /// Bit k set for each lane k of mask m.
+    static DYNBVH_ALWAYS_INLINE unsigned bits(reg m) noexcept { return unsigned(_mm_movemask_ps(m)); }
 };
 
 #if defined(DYNBVH_AVX)
@@ -102,6 +123,23 @@ struct Lanes8 {
     static DYNBVH_ALWAYS_INLINE unsigned le_mask(reg a, reg b) noexcept {
         return unsigned(_mm256_movemask_ps(_mm256_cmp_ps(a, b, _CMP_LE_OQ)));
     }
+    static DYNBVH_ALWAYS_INLINE reg div(reg a, reg b) noexcept { return _mm256_div_ps(a, b); }
+    static DYNBVH_ALWAYS_INLINE reg madd(reg a, reg b, reg c) noexcept {
+#if defined(__FMA__)
+        return _mm256_fmadd_ps(a, b, c);
+#else
+        return _mm256_add_ps(_mm256_mul_ps(a, b), c);
+#endif
+    }
+    static DYNBVH_ALWAYS_INLINE reg neg(reg a) noexcept { return _mm256_xor_ps(_mm256_set1_ps(-0.0f), a); }
+    static DYNBVH_ALWAYS_INLINE reg band(reg a, reg b) noexcept { return _mm256_and_ps(a, b); }
+    static DYNBVH_ALWAYS_INLINE reg bor(reg a, reg b) noexcept { return _mm256_or_ps(a, b); }
+    static DYNBVH_ALWAYS_INLINE reg gt(reg a, reg b) noexcept { return _mm256_cmp_ps(a, b, _CMP_GT_OQ); }
+    static DYNBVH_ALWAYS_INLINE reg lt(reg a, reg b) noexcept { return _mm256_cmp_ps(a, b, _CMP_LT_OQ); }
+    static DYNBVH_ALWAYS_INLINE reg ge(reg a, reg b) noexcept { return _mm256_cmp_ps(a, b, _CMP_GE_OQ); }
+    static DYNBVH_ALWAYS_INLINE reg le(reg a, reg b) noexcept { return _mm256_cmp_ps(a, b, _CMP_LE_OQ); }
+    static DYNBVH_ALWAYS_INLINE reg ne(reg a, reg b) noexcept { return _mm256_cmp_ps(a, b, _CMP_NEQ_UQ); }
+    static DYNBVH_ALWAYS_INLINE unsigned bits(reg m) noexcept { return unsigned(_mm256_movemask_ps(m)); }
 };
 /// The widest lanes that divide W: one AVX step per 8-wide node.
 template <int W>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 /// @file detail/triangle_block.hpp
 /// SIMD triangle leaves: up to L = 4 (SSE) or 8 (AVX) triangles of one leaf stored structure of
 /// arrays, packed in leaf order, and the two triangle tests on a whole block at once.
@@ -54,15 +55,9 @@
 #include "../intersect.hpp"
 #include "../ray.hpp"
 #include "scratch.hpp"
+#include "simd.hpp"
 #include "../triangle.hpp"
 
-#if (defined(__SSE2__) || defined(_M_X64)) && !defined(DYNBVH_NO_SIMD)
-#include <immintrin.h>
-#define DYNBVH_BLOCK_SSE 1
-#if defined(__AVX__)
-#define DYNBVH_BLOCK_AVX 1
-#endif
-#endif
 
 namespace dynbvh::detail {
 
@@ -188,81 +183,13 @@ protected:
     }
 };
 
-#if defined(DYNBVH_BLOCK_SSE)
-// A private minimal lane wrapper (to be replaced by detail/simd.hpp's).
-namespace block_lanes {
-struct L4 {
-    using reg = __m128;
-    static constexpr int n = 4;
-    static DYNBVH_ALWAYS_INLINE reg set1(float x) noexcept { return _mm_set1_ps(x); }
-    static DYNBVH_ALWAYS_INLINE reg load(const float* p) noexcept { return _mm_load_ps(p); }
-    static DYNBVH_ALWAYS_INLINE void store(float* p, reg a) noexcept { _mm_store_ps(p, a); }
-    static DYNBVH_ALWAYS_INLINE reg add(reg a, reg b) noexcept { return _mm_add_ps(a, b); }
-    static DYNBVH_ALWAYS_INLINE reg sub(reg a, reg b) noexcept { return _mm_sub_ps(a, b); }
-    static DYNBVH_ALWAYS_INLINE reg mul(reg a, reg b) noexcept { return _mm_mul_ps(a, b); }
-    static DYNBVH_ALWAYS_INLINE reg div(reg a, reg b) noexcept { return _mm_div_ps(a, b); }
-    /// a * b + c, fused where the target has FMA (only used where either rounding is fine)
-    static DYNBVH_ALWAYS_INLINE reg madd(reg a, reg b, reg c) noexcept {
-#if defined(__FMA__)
-        return _mm_fmadd_ps(a, b, c);
-#else
-        return _mm_add_ps(_mm_mul_ps(a, b), c);
-#endif
-    }
-    static DYNBVH_ALWAYS_INLINE reg abs(reg a) noexcept { return _mm_andnot_ps(_mm_set1_ps(-0.0f), a); }
-    static DYNBVH_ALWAYS_INLINE reg neg(reg a) noexcept { return _mm_xor_ps(_mm_set1_ps(-0.0f), a); }
-    static DYNBVH_ALWAYS_INLINE reg band(reg a, reg b) noexcept { return _mm_and_ps(a, b); }
-    static DYNBVH_ALWAYS_INLINE reg bor(reg a, reg b) noexcept { return _mm_or_ps(a, b); }
-    // ordered comparisons: false when either side is NaN
-    static DYNBVH_ALWAYS_INLINE reg gt(reg a, reg b) noexcept { return _mm_cmpgt_ps(a, b); }
-    static DYNBVH_ALWAYS_INLINE reg lt(reg a, reg b) noexcept { return _mm_cmplt_ps(a, b); }
-    static DYNBVH_ALWAYS_INLINE reg ge(reg a, reg b) noexcept { return _mm_cmpge_ps(a, b); }
-    static DYNBVH_ALWAYS_INLINE reg le(reg a, reg b) noexcept { return _mm_cmple_ps(a, b); }
-    static DYNBVH_ALWAYS_INLINE reg ne(reg a, reg b) noexcept { return _mm_cmpneq_ps(a, b); }   // true for NaN
-    static DYNBVH_ALWAYS_INLINE unsigned bits(reg m) noexcept { return unsigned(_mm_movemask_ps(m)); }
-};
-#if defined(DYNBVH_BLOCK_AVX)
-struct L8 {
-    using reg = __m256;
-    static constexpr int n = 8;
-    static DYNBVH_ALWAYS_INLINE reg set1(float x) noexcept { return _mm256_set1_ps(x); }
-    static DYNBVH_ALWAYS_INLINE reg load(const float* p) noexcept { return _mm256_load_ps(p); }
-    static DYNBVH_ALWAYS_INLINE void store(float* p, reg a) noexcept { _mm256_store_ps(p, a); }
-    static DYNBVH_ALWAYS_INLINE reg add(reg a, reg b) noexcept { return _mm256_add_ps(a, b); }
-    static DYNBVH_ALWAYS_INLINE reg sub(reg a, reg b) noexcept { return _mm256_sub_ps(a, b); }
-    static DYNBVH_ALWAYS_INLINE reg mul(reg a, reg b) noexcept { return _mm256_mul_ps(a, b); }
-    static DYNBVH_ALWAYS_INLINE reg div(reg a, reg b) noexcept { return _mm256_div_ps(a, b); }
-    static DYNBVH_ALWAYS_INLINE reg madd(reg a, reg b, reg c) noexcept {
-#if defined(__FMA__)
-        return _mm256_fmadd_ps(a, b, c);
-#else
-        return _mm256_add_ps(_mm256_mul_ps(a, b), c);
-#endif
-    }
-    static DYNBVH_ALWAYS_INLINE reg abs(reg a) noexcept { return _mm256_andnot_ps(_mm256_set1_ps(-0.0f), a); }
-    static DYNBVH_ALWAYS_INLINE reg neg(reg a) noexcept { return _mm256_xor_ps(_mm256_set1_ps(-0.0f), a); }
-    static DYNBVH_ALWAYS_INLINE reg band(reg a, reg b) noexcept { return _mm256_and_ps(a, b); }
-    static DYNBVH_ALWAYS_INLINE reg bor(reg a, reg b) noexcept { return _mm256_or_ps(a, b); }
-    static DYNBVH_ALWAYS_INLINE reg gt(reg a, reg b) noexcept { return _mm256_cmp_ps(a, b, _CMP_GT_OQ); }
-    static DYNBVH_ALWAYS_INLINE reg lt(reg a, reg b) noexcept { return _mm256_cmp_ps(a, b, _CMP_LT_OQ); }
-    static DYNBVH_ALWAYS_INLINE reg ge(reg a, reg b) noexcept { return _mm256_cmp_ps(a, b, _CMP_GE_OQ); }
-    static DYNBVH_ALWAYS_INLINE reg le(reg a, reg b) noexcept { return _mm256_cmp_ps(a, b, _CMP_LE_OQ); }
-    static DYNBVH_ALWAYS_INLINE reg ne(reg a, reg b) noexcept { return _mm256_cmp_ps(a, b, _CMP_NEQ_UQ); }
-    static DYNBVH_ALWAYS_INLINE unsigned bits(reg m) noexcept { return unsigned(_mm256_movemask_ps(m)); }
-};
-template <int L>
-using for_block = std::conditional_t<L == 8, L8, L4>;
-#else
-template <int L>
-using for_block = L4;   // 8 lanes in two SSE steps
-#endif
-} // namespace block_lanes
+#if defined(DYNBVH_SSE)
 
 /// tri::watertight on a block: the SIMD float filter, then the scalar test on the lanes it keeps
 /// (see the file comment for the exactness argument and the bound).
 template <int L>
 struct BlockTest<tri::watertight, L> {
-    using V = block_lanes::for_block<L>;
+    using V = lanes_for<L>;   // L = 8: AVX where compiled in, else two SSE steps
     using R = typename V::reg;
     using prepared = tri::watertight::prepared<float>;
     prepared pt;
@@ -364,7 +291,7 @@ private:
 /// same order: cross and dot as in vec.hpp, one division), then tmax and the tie rule in slot order.
 template <int L>
 struct BlockTest<tri::moller_trumbore, L> {
-    using V = block_lanes::for_block<L>;
+    using V = lanes_for<L>;   // L = 8: AVX where compiled in, else two SSE steps
     using R = typename V::reg;
     using prepared = tri::moller_trumbore::prepared<float>;
     prepared pt;
@@ -438,6 +365,6 @@ struct BlockTest<tri::moller_trumbore, L> {
 private:
     R ox_, oy_, oz_, dx_, dy_, dz_, tmin_;
 };
-#endif  // DYNBVH_BLOCK_SSE
+#endif  // DYNBVH_SSE
 
 } // namespace dynbvh::detail
