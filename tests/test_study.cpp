@@ -162,17 +162,24 @@ TEST_CASE("study: SAH of a 2-triangle scene is exact, and --info describes it") 
                "0 0 0\n1 0 0\n0 1 0\n100 0 0\n101 0 0\n100 1 0\n3 0 1 2\n3 3 4 5\n";
     }
     const double expected = (3.0 * 202.0 + 8.0) / 202.0;
-    const int rc = run_study("--scenes \"" + (out / "two.ply").string() + "\" --builders lbvh,ploc:wide=4,kbvh:wide=8,binned-sah,lbvh:wide=0 --res 16x16 "
+    const int rc = run_study("--scenes \"" + (out / "two.ply").string() + "\" --builders lbvh,ploc:wide=4,kbvh:wide=8,binned-sah,lbvh:wide=0,ploc:wide=4:blocks=1 --res 16x16 "
                              "--images 0 --out \"" + out.string() + "\"",
                              out / "log.txt");
     INFO(read_all(out / "log.txt"));
     REQUIRE(rc == 0);
     const Json j = Json::parse(read_all(out / "study.json"));
     const auto& results = j.at("results");
-    REQUIRE(results.size() == 5);
+    REQUIRE(results.size() == 6);
     std::set<double> default_bytes;
     for (const auto& g : results) {
         INFO(g.at("builder").get<std::string>());
+        if (g.at("builder").get<std::string>().find("blocks=1") != std::string::npos) {
+            // block leaves (Ci 0.5): one leaf of both triangles beats two (0.5 * 202 * 2 < 3 * 202 + 0.5 * 4),
+            // so SAH (Ct 3, Ci 2) = 2 * 202 * 2 / 202 = 4; traced: one 4-wide node and one 4-lane block (192 bytes)
+            CHECK(g.at("per_frame").at(0).at("sah").get<double>() == doctest::Approx(4.0).epsilon(1e-12));
+            CHECK(g.at("per_frame").at(0).at("memory_bytes").get<double>() == 128 + 192);
+            continue;
+        }
         CHECK(g.at("per_frame").at(0).at("sah").get<double>() == doctest::Approx(expected).epsilon(1e-12));
         CHECK(g.at("per_frame").at(0).at("triangles").get<double>() == 2);
         // the traced tree: 3 binary nodes (32 bytes each), one 4-wide node (128 bytes) or one 8-wide node
@@ -206,6 +213,8 @@ TEST_CASE("study: bad input fails with a message naming it") {
     CHECK(read_all(out / "log1.txt").find("no-such-scene-xyz") != std::string::npos);
     CHECK(run_study("--builders lbvh,octree --out \"" + out.string() + "\"", out / "log2.txt") != 0);
     CHECK(read_all(out / "log2.txt").find("octree") != std::string::npos);
+    CHECK(run_study("--builders ploc:wide=0:blocks=1 --out \"" + out.string() + "\"", out / "log5.txt") != 0);
+    CHECK(read_all(out / "log5.txt").find("blocks=1 needs a wide tree") != std::string::npos);
     CHECK(run_study("--res 640by480", out / "log3.txt") == 2);
     CHECK(read_all(out / "log3.txt").find("640by480") != std::string::npos);
     {

@@ -15,9 +15,12 @@ decltype(auto) with_policy(const BuilderSpec& spec, const F& f) {
     return f.template operator()<trace::robust>();
 }
 
-/// f(tree) with the tree spec.wide names: the 4- or 8-wide one, or the binary one for wide=0.
+/// f(tree) with the tree spec.wide names: the 4- or 8-wide one (with block leaves when spec.blocks), or
+/// the binary one for wide=0.
 template <class Prim, class F>
 decltype(auto) with_tree(const BuilderSpec& spec, const Trees<Prim>& t, const F& f) {
+    if (spec.blocks && spec.wide == 8) return f(t.blocks8);
+    if (spec.blocks && spec.wide == 4) return f(t.blocks4);
     if (spec.wide == 8) return f(t.wide8);
     if (spec.wide == 4) return f(t.wide4);
     return f(t.bvh);

@@ -64,6 +64,7 @@ std::string BuilderSpec::name() const {
     if (fast_tri) s += ":tri=mt";
     if (precomputed) s += ":prim=pre";
     if (wide != d.wide) s += ":wide=" + std::to_string(wide);
+    if (blocks != d.blocks) s += std::string(":blocks=") + (blocks ? "1" : "0");
     return s;
 }
 
@@ -132,9 +133,18 @@ BuilderSpec parse_builder(const std::string& spec) {
             if (!ours) reject();
             if (v != "0" && v != "4" && v != "8") throw std::invalid_argument("builder '" + spec + "': wide must be 0, 4 or 8");
             b.wide = v[0] - '0';
+        } else if (key == "blocks") {
+            if (!ours) reject();
+            if (v != "0" && v != "1") throw std::invalid_argument("builder '" + spec + "': blocks must be 0 or 1");
+            b.blocks = v == "1";
         } else {
             reject();
         }
+    }
+    if (b.blocks && b.wide == 0) {
+        if (parts.size() > 1 && spec.find("blocks=1") != std::string::npos)
+            throw std::invalid_argument("builder '" + spec + "': blocks=1 needs a wide tree (wide=4 or 8)");
+        b.blocks = false;   // the default with wide=0: the binary tree has no blocks
     }
     return b;
 }

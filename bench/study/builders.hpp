@@ -30,6 +30,9 @@ inline constexpr int default_wide = 8;
 inline constexpr int default_wide = 4;
 #endif
 
+/// Whether the study traces block-leaf trees (wide_blocks.hpp) by default.
+inline constexpr bool default_blocks = false;
+
 struct BuilderSpec {
     Kind kind = Kind::lbvh;
     std::uint32_t radius = 5;      ///< ploc, kbvh: PLOC search radius
@@ -42,6 +45,8 @@ struct BuilderSpec {
     bool precomputed = false;      ///< prim::copied instead of prim::indexed
     int wide = default_wide;       ///< trace a 4- or 8-wide tree converted from the binary one (wide.hpp; the
                                    ///< conversion is part of the timed build); wide=0: the binary traversal
+    bool blocks = default_blocks;  ///< wide tree with leaves in SIMD triangle blocks of `wide` lanes, the binary
+                                   ///< tree built with block_leaves (wide_blocks.hpp); needs wide=4 or 8
 
     bool is_embree() const noexcept { return kind == Kind::embree_low || kind == Kind::embree_medium || kind == Kind::embree_refit; }
     /// Keeps a tree from frame to frame (refit, embree-refit).

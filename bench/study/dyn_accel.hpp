@@ -17,6 +17,7 @@
 #include <dynbvh/sah.hpp>
 #include <dynbvh/traverse.hpp>
 #include <dynbvh/wide.hpp>
+#include <dynbvh/wide_blocks.hpp>
 
 #include "builders.hpp"
 
@@ -49,6 +50,8 @@ struct Trees {
                                        ///< moves to the wide tree when there is one
     wide_bvh_of<BvhT, 4> wide4;        ///< built when spec.wide == 4
     wide_bvh_of<BvhT, 8> wide8;        ///< built when spec.wide == 8
+    wide_blocks_bvh_of<BvhT, 4> blocks4;   ///< built instead of wide4 when spec.blocks (wide_blocks.hpp)
+    wide_blocks_bvh_of<BvhT, 8> blocks8;   ///< built instead of wide8 when spec.blocks
 
     /// One primary ray per pixel through the tree spec.wide names, with spec's box and triangle tests.
     void trace(const BuilderSpec& spec, const Backend& backend, std::span<const Trianglef> tris, const RayGen& gen,
@@ -70,7 +73,13 @@ public:
     void build(std::span<const Trianglef> tris) override {
         previous_ = std::move(current_);   // freed untimed in release_previous()
         build_binary(tris);
-        // The 4- or 8-wide tree traced when spec_.wide (timed as part of the build).
+        // The 4- or 8-wide tree traced when spec_.wide (timed as part of the build); with blocks its
+        // leaves are copied into triangle blocks and the binary tree keeps its leaf part.
+        if (spec_.blocks) {
+            if (spec_.wide == 4) current_.blocks4 = make_wide_blocks<4>(current_.bvh, tris, ex_);
+            if (spec_.wide == 8) current_.blocks8 = make_wide_blocks<8>(current_.bvh, tris, ex_);
+            return;
+        }
         if (spec_.wide == 4) current_.wide4 = take_wide<4>(current_.bvh);
         if (spec_.wide == 8) current_.wide8 = take_wide<8>(current_.bvh);
     }
@@ -84,7 +93,8 @@ public:
         return wide;
     }
     void build_binary(std::span<const Trianglef> tris) {
-        const LeafConfig leaves{.max_leaf_size = spec_.max_leaf};
+        LeafConfig leaves{.max_leaf_size = spec_.max_leaf};
+        if (spec_.blocks) leaves.cost = block_leaves.cost;   // fuller leaves for SIMD blocks
         auto& bvh = current_.bvh;
         switch (spec_.kind) {
             case Kind::lbvh:

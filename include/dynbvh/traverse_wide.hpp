@@ -13,6 +13,10 @@
 /// direction component). The triangle test's setup waits for the first leaf: most primary rays of
 /// open scenes reach none.
 ///
+/// Block trees (prim::blocks<L>, wide_blocks.hpp): a leaf slot names its first SIMD triangle block and
+/// the leaf test is detail::BlockTest (detail/triangle_block.hpp), which returns test_leaf's answers
+/// bit for bit, so the traversal is the same as for index leaves.
+///
 /// Exactness: as in traverse.hpp; `intersect(wide, ...)` returns what `brute_force_intersect` returns
 /// (t to the bit; an exact tie may name another triangle). Hit children are visited nearest first; the
 /// others go on a fixed stack of W - 1 entries per wide level with their entry distance and are skipped

@@ -15,6 +15,7 @@
 /// prim_ids slot, `count` references) or empty (an inverted box every test misses).
 /// WideNode<float, uint32_t, 4> is 128 bytes (32 per child, as a binary node), the 8-wide node 256.
 /// The leaf part (bvh.hpp: prim_ids, leaf triangles, counts) is the binary tree's, unchanged.
+/// `make_wide_blocks` (wide_blocks.hpp) converts to the same nodes with leaves in SIMD triangle blocks.
 ///
 /// Collapse (after Wald et al. 2008 "Getting rid of packets", and Pinto 2010): each wide node starts
 /// from a binary inner node's two children and repeatedly opens the inner child of largest surface

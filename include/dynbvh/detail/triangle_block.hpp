@@ -36,7 +36,8 @@
 /// the scalar test's bit for bit as long as neither is FMA-contracted (DYNBVH_NATIVE builds use
 /// -ffp-contract=off); lanes then go through tmax and the tie rule in slot order as in test_leaf.
 ///
-/// SIMD: SSE2 for L = 4; AVX for L = 8 where the compiler targets it (__AVX__), else two SSE steps.
+/// SIMD (detail/simd.hpp lane wrappers): SSE2 for L = 4; AVX for L = 8 where the compiler targets it
+/// (__AVX__), else two SSE steps.
 /// With -DDYNBVH_NO_SIMD or on other targets, both tests are the scalar loop (same results).
 /// Float triangles only.
 #pragma once
