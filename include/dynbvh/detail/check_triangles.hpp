@@ -26,8 +26,9 @@ std::string triangle_mismatch(const Tree& tree, std::size_t given, const char* f
 /// not (their leaves hold copies), so any span, even an empty one, is accepted there.
 template <class Tree>
 void check_triangles(const Tree& tree, std::size_t given, const char* fn, bool reads = true) {
-    if (!reads) return;
-    if (std::string msg = triangle_mismatch(tree, given, fn); !msg.empty()) throw std::invalid_argument(msg);
+    // (the comparison first: building even an empty message per traced ray cost about 3% of a primary ray)
+    if (!reads || given == tree.primitive_count) [[likely]] return;
+    throw std::invalid_argument(triangle_mismatch(tree, given, fn));
 }
 
 } // namespace dynbvh::detail
