@@ -162,7 +162,7 @@ TEST_CASE("study: SAH of a 2-triangle scene is exact, and --info describes it") 
                "0 0 0\n1 0 0\n0 1 0\n100 0 0\n101 0 0\n100 1 0\n3 0 1 2\n3 3 4 5\n";
     }
     const double expected = (3.0 * 202.0 + 8.0) / 202.0;
-    const int rc = run_study("--scenes \"" + (out / "two.ply").string() + "\" --builders lbvh,ploc:wide=4,kbvh:wide=8,binned-sah,lbvh:wide=0,ploc:wide=4:blocks=1 --res 16x16 "
+    const int rc = run_study("--scenes \"" + (out / "two.ply").string() + "\" --builders lbvh:blocks=0,ploc:wide=4:blocks=0,kbvh:wide=8:blocks=0,binned-sah:blocks=0,lbvh:wide=0,ploc:wide=4:blocks=1 --res 16x16 "
                              "--images 0 --out \"" + out.string() + "\"",
                              out / "log.txt");
     INFO(read_all(out / "log.txt"));
