@@ -12,9 +12,13 @@
 /// ceil(n / L) blocks of L lanes (detail/triangle_block.hpp: vertices structure of arrays, the
 /// user's triangle index per lane), leaves in node order; a leaf slot's `child` becomes its first
 /// block (its `count` stays the number of triangles, so sah_cost is unchanged). O(references),
-/// parallel over `ex`. The tree owns its triangles' vertices: tracing reads only the tree (the
-/// `tris` argument of intersect / occluded is still checked for its size, as for every tree, so a
-/// call site can switch between tree types), and `prim_ids` / `leaf_triangles` are empty.
+/// parallel over `ex`. The tree owns its triangles' vertices: tracing reads only the tree, yet the
+/// `tris` argument of intersect / occluded is still checked to be the array the tree was built over
+/// (exactly primitive_count triangles, as for prim::indexed trees), so that a call site can switch
+/// tree types and a wrong scene is not traced unnoticed; `prim_ids` / `leaf_triangles` stay empty.
+/// Memory: 192 (L = 4) or 384 (L = 8) bytes per block; on the bunny with block_leaves and L = 8 the
+/// tree takes 86 bytes per triangle (72 of them blocks), against 40 for the user's array plus a
+/// prim::indexed tree's references.
 ///
 /// Leaf tests: trace::robust tests a whole block with a SIMD float filter on the watertight edge
 /// functions and confirms the lanes it keeps with the exact scalar test; trace::fast tests a block
