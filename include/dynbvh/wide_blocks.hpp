@@ -58,7 +58,7 @@ namespace prim {
 template <int L = 8>
 struct blocks {
     static_assert(L == 4 || L == 8, "triangle blocks have 4 or 8 lanes");
-    static constexpr int lanes = L;
+    static constexpr int lanes = L;   ///< triangles per block
 };
 } // namespace prim
 
@@ -68,13 +68,16 @@ struct blocks {
 template <class Scalar, class Index, int L>
 struct LeafPart<Scalar, Index, prim::blocks<L>> : LeafPart<Scalar, Index, prim::indexed> {
     static_assert(std::is_same_v<Scalar, float>, "dynbvh: triangle blocks are float");
-    using prim_policy = prim::blocks<L>;
-    using block_type = detail::TriangleBlock<L>;
-    static constexpr int block_lanes = L;
+    using prim_policy = prim::blocks<L>;          ///< this leaf part's policy
+    using block_type = detail::TriangleBlock<L>;  ///< L triangles, structure of arrays (detail/triangle_block.hpp)
+    static constexpr int block_lanes = L;         ///< triangles per block
 
+    /// The leaves' triangles, leaf after leaf in node order (scratch cache, as every tree array).
     scratch_vector<block_type> blocks;
 
+    /// This part alone (to move it between trees).
     LeafPart& leaves() noexcept { return *this; }
+    /// This part alone (to move it between trees).
     const LeafPart& leaves() const noexcept { return *this; }
     /// Bytes of the blocks.
     std::size_t leaf_bytes() const noexcept { return blocks.size() * sizeof(block_type); }
