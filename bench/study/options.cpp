@@ -60,8 +60,8 @@ Builders (--builders, comma separated; default: all available)
   ploc:tri=mt (Moller-Trumbore instead of watertight), ploc:box=fast (plain slab test),
   ploc:prim=pre (leaf triangles copied into the tree), ploc:wide=4 / ploc:wide=8 (trace a 4- or 8-wide
   tree converted from the binary one; default 8 when built with AVX, else 4), ploc:wide=0 (the binary
-  tree), ploc:blocks=1 (the wide tree's leaves in SIMD triangle blocks, the binary tree built with
-  fuller leaves for them), e.g. ploc:r=10:leaf=4
+  tree), ploc:blocks=1 / ploc:blocks=0 (the wide tree's leaves in SIMD triangle blocks, the binary tree
+  built with fuller leaves for them, or index leaves, the default), e.g. ploc:r=10:leaf=4
 
 Options take their value as --x V or --x=V.
 
