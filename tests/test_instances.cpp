@@ -93,13 +93,21 @@ std::vector<Rayf> scene_rays(const Scene& scene, std::size_t n, std::uint64_t se
     const AABBf world = scene.top().bounds();
     const float reach = 2 * length(world.diagonal()) + 10;
     for (std::size_t i = 0; i < n && !scene.top().empty(); ++i) {
-        const auto& leaf_box = scene.top().nodes[0].bounds();
-        (void)leaf_box;
         const std::uint32_t k = std::uint32_t(r.next() % scene.instance_count());
         const auto& inst = scene.instances()[k];
         const auto tris = scene.object_triangles(inst.object);
         Vec3f target = inst.transform.point(Vec3f{});
-        if (!tris.empty()) {   // a point on one of its triangles (hits likely), or near it
+        if (!tris.empty() && i % 8 >= 6) {
+            // A vertex on the object's bounding box (the extreme one along a random axis): its hit lies on
+            // the box's surface, where culling without the padding of two_level.hpp would lose it.
+            const std::size_t axis = r.next() % 3;
+            const bool hi = r.next() % 2 == 0;
+            Vec3f best = tris[0].p0;
+            for (const auto& t : tris)
+                for (const Vec3f& p : {t.p0, t.p1, t.p2})
+                    if (hi ? p[axis] > best[axis] : p[axis] < best[axis]) best = p;
+            target = inst.transform.point(best);
+        } else if (!tris.empty()) {   // a point on one of its triangles (hits likely), or near it
             const Trianglef& t = tris[r.next() % tris.size()];
             const float a = r.uniform(), b = r.uniform() * (1 - a);
             target = inst.transform.point(t.p0 + (t.p1 - t.p0) * a + (t.p2 - t.p0) * b);
@@ -112,6 +120,7 @@ std::vector<Rayf> scene_rays(const Scene& scene, std::size_t n, std::uint64_t se
         case 3: ray.tmax = 0.5f; break;                                                                            // clipped
         case 4: ray.tmin = 0.5f; break;
         case 5: ray.org = target; ray.tmin = -1.0f; break;   // starts at the surface, interval both ways
+        case 7: ray.org = target - normalize(ray.dir) * (1e4f * reach); ray.dir = target - ray.org; break;   // from afar
         default: break;
         }
         rays.push_back(ray);

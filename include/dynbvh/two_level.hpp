@@ -255,7 +255,9 @@ public:
         return false;
     }
 
+    /// Number of objects added.
     std::size_t object_count() const noexcept { return objects_.size(); }
+    /// Number of instances (as last set).
     std::size_t instance_count() const noexcept { return instances_.size(); }
     /// Object `object`'s tree (throws std::invalid_argument for a bad id).
     const object_bvh_type& object_bvh(std::uint32_t object) const {
