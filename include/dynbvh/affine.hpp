@@ -21,6 +21,7 @@ namespace dynbvh {
 /// column 3 the translation t. Default: identity. Mirrored transforms (det L < 0) are fine.
 template <class T>
 struct Affine {
+    /// The 12 entries, row-major (see the struct comment); identity by default.
     std::array<T, 12> m{T(1), T(0), T(0), T(0), T(0), T(1), T(0), T(0), T(0), T(0), T(1), T(0)};
 
     /// L p + t, each row as fma(m0, x, fma(m1, y, fma(m2, z, m3))).
@@ -51,6 +52,7 @@ private:
     }
 };
 
+/// The float transform the default trees use.
 using Affinef = Affine<float>;
 
 namespace detail {

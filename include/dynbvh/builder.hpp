@@ -23,8 +23,8 @@ namespace dynbvh::builder {
 
 /// PLOC (Meister & Bittner 2018), ploc.hpp: the default of every policy taking a builder.
 struct ploc {
-    using config = dynbvh::ploc::Config;
-    static constexpr const char* name = "ploc";
+    using config = dynbvh::ploc::Config;   ///< the builder's knobs
+    static constexpr const char* name = "ploc";   ///< the study\'s name
     /// dynbvh::ploc::build. O(n log n) work, parallel over `ex`.
     template <class NodeT, class Prim, class Exec>
     static Bvh<NodeT, Prim> build(std::span<const Triangle<typename NodeT::scalar_type>> tris, const config& cfg,
@@ -40,8 +40,8 @@ struct ploc {
 
 /// LBVH (Karras 2012, Apetrei 2014), lbvh.hpp: fastest build, lowest quality.
 struct lbvh {
-    using config = dynbvh::lbvh::Config;
-    static constexpr const char* name = "lbvh";
+    using config = dynbvh::lbvh::Config;   ///< the builder's knobs
+    static constexpr const char* name = "lbvh";   ///< the study\'s name
     /// dynbvh::lbvh::build. O(n) work per step, parallel over `ex`.
     template <class NodeT, class Prim, class Exec>
     static Bvh<NodeT, Prim> build(std::span<const Triangle<typename NodeT::scalar_type>> tris, const config& cfg,
@@ -57,8 +57,8 @@ struct lbvh {
 
 /// Binned SAH (Wald 2007), binned_sah.hpp: slowest build, best quality.
 struct binned_sah {
-    using config = dynbvh::binned_sah::Config;
-    static constexpr const char* name = "binned-sah";
+    using config = dynbvh::binned_sah::Config;   ///< the builder's knobs
+    static constexpr const char* name = "binned-sah";   ///< the study\'s name
     /// dynbvh::binned_sah::build. O(n log n) work, parallel over `ex`.
     template <class NodeT, class Prim, class Exec>
     static Bvh<NodeT, Prim> build(std::span<const Triangle<typename NodeT::scalar_type>> tris, const config& cfg,

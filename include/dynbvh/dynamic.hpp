@@ -68,8 +68,8 @@ enum class Reason : std::uint8_t {
 
 /// One frame's decision. SAHs are sah_cost values (sah.hpp, the policy's `cost`).
 struct FrameReport {
-    Decision decision = Decision::refit;
-    Reason reason = Reason::none;
+    Decision decision = Decision::refit;   ///< what was done
+    Reason reason = Reason::none;          ///< why
     /// SAH of the previous frame's tree refitted to this frame (refit and rebuild on SAH growth); for a
     /// swap the SAH the replaced tree had at the previous frame; NaN when there was no tree to refit
     /// (first frame, topology or finiteness change).
@@ -111,10 +111,10 @@ template <class Builder = builder::ploc, class NodeT = Node<>, class Prim = prim
           class Exec = exec::default_executor>
 class Dynamic {
 public:
-    using scalar_type = typename NodeT::scalar_type;
-    using triangle_type = Triangle<scalar_type>;
-    using bvh_type = Bvh<NodeT, Prim>;
-    using config_type = DynamicConfig<typename Builder::config>;
+    using scalar_type = typename NodeT::scalar_type;              ///< the tree's scalar (float by default)
+    using triangle_type = Triangle<scalar_type>;                  ///< the input triangle
+    using bvh_type = Bvh<NodeT, Prim>;                            ///< the tree held across frames
+    using config_type = DynamicConfig<typename Builder::config>;  ///< the policy's knobs
 
     /// A policy with no tree yet (the first update() builds). Throws std::invalid_argument when
     /// cfg.rebuild_threshold is NaN or negative.
@@ -123,7 +123,9 @@ public:
             throw std::invalid_argument("dynbvh::Dynamic: cfg.rebuild_threshold is " + std::to_string(cfg.rebuild_threshold) +
                                         "; it must be >= 0 (0 rebuilds every frame, +inf never)");
     }
+    /// Takes over `o`'s tree and its running background rebuild, if any.
     Dynamic(Dynamic&&) noexcept = default;
+    /// Waits for this policy's own background rebuild, then takes over `o`'s state.
     Dynamic& operator=(Dynamic&& o) noexcept {
         if (this != &o) {
             drop_background();

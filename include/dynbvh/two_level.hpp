@@ -84,7 +84,7 @@ struct Instance {
 /// and the instance it belongs to (`invalid_prim` when nothing is hit).
 template <class T>
 struct InstanceHit : Hit<T> {
-    std::uint32_t instance = invalid_prim;
+    std::uint32_t instance = invalid_prim;   ///< index of the instance hit (into TwoLevel::instances())
 };
 
 namespace detail {
@@ -114,12 +114,12 @@ template <class Builder = builder::ploc, class NodeT = Node<>, class Prim = prim
           class Exec = exec::default_executor>
 class TwoLevel {
 public:
-    using scalar_type = typename NodeT::scalar_type;
-    using triangle_type = Triangle<scalar_type>;
-    using object_policy = Dynamic<Builder, NodeT, Prim, Exec>;
-    using object_bvh_type = Bvh<NodeT, Prim>;
+    using scalar_type = typename NodeT::scalar_type;              ///< the trees' scalar (float by default)
+    using triangle_type = Triangle<scalar_type>;                  ///< an object's triangle
+    using object_policy = Dynamic<Builder, NodeT, Prim, Exec>;    ///< each object's refit-or-rebuild policy
+    using object_bvh_type = Bvh<NodeT, Prim>;                     ///< an object's tree
     using top_bvh_type = Bvh<NodeT, prim::indexed>;   ///< its prim_ids are instance indices
-    using config_type = TwoLevelConfig<Builder>;
+    using config_type = TwoLevelConfig<Builder>;                  ///< the scene's knobs
 
     /// An empty scene. Throws std::invalid_argument for a bad cfg.objects (see DynamicConfig).
     explicit TwoLevel(const config_type& cfg = {}, const Exec& ex = {}) : cfg_(cfg), ex_(ex) {
