@@ -54,9 +54,9 @@ struct alignas(64) WideNode {
     using index_type = Index;
     static constexpr int width = W;
 
-    Scalar lo_x[W], hi_x[W], lo_y[W], hi_y[W], lo_z[W], hi_z[W];
-    Index child[W];
-    Index count[W];
+    Scalar lo_x[std::size_t(W)], hi_x[std::size_t(W)], lo_y[std::size_t(W)], hi_y[std::size_t(W)], lo_z[std::size_t(W)], hi_z[std::size_t(W)];
+    Index child[std::size_t(W)];   // size_t(W): an int bound warns under g++ -Wsign-conversion
+    Index count[std::size_t(W)];
 
     /// Marks every slot empty.
     constexpr void clear() noexcept {
@@ -147,7 +147,7 @@ inline int open_wide(std::span<const NodeT> bin, typename NodeT::index_type b, t
 template <int W, class NodeT, class Inner>
 inline void fill_wide(std::span<const NodeT> bin, typename NodeT::index_type b,
                       WideNode<typename NodeT::scalar_type, typename NodeT::index_type, W>& w, Inner&& inner) {
-    typename NodeT::index_type c[W];
+    typename NodeT::index_type c[std::size_t(W)];
     const int n = open_wide<W>(bin, b, c);
     w.clear();
     for (int k = 0; k < n; ++k) {
