@@ -2,11 +2,13 @@
 # warning flags. This check compiles, with one compiler (syntax only, so it is fast), under
 #   -std=c++20 -Wall -Wextra -Wpedantic -Wconversion -Wsign-conversion -Wshadow -Werror
 # MODE=headers:         every public header (include/dynbvh/**/*.hpp) alone, as `#include <dynbvh/...>`;
-# MODE=instantiations:  tests/strict_warnings.cpp (every public template instantiated) and
-#                       examples/quickstart.cpp (the README's program), without a backend, and with
-#                       -fopenmp (HAVE_OMP) and -DDYNBVH_WITH_TBB=1 (HAVE_TBB, headers in TBB_INCLUDE).
+# MODE=instantiations:  SOURCES (tests/strict_warnings.cpp: every public template instantiated;
+#                       examples/quickstart.cpp: the README's program) without a backend, and with
+#                       -fopenmp (HAVE_OMP) and -DDYNBVH_WITH_TBB=1 (HAVE_TBB); BACKEND_SOURCES
+#                       (tests/readme_snippets.cpp: the README's code) only with both backends.
 # -DCXX=<compiler> -DMODE=headers|instantiations -DINCLUDE_DIR=<include/> -DSOURCES=<a.cpp;b.cpp>
-# -DWORK_DIR=<scratch folder> [-DHAVE_OMP=ON] [-DHAVE_TBB=ON -DTBB_INCLUDE=<dirs>]
+# -DWORK_DIR=<scratch folder> [-DHAVE_OMP=ON] [-DHAVE_TBB=ON] [-DBACKEND_SOURCES=<c.cpp>]
+# [-DSYSTEM_INCLUDE=<dirs of TBB and doctest, passed as -isystem>]
 # Prints "...: skipped" (the test's SKIP_REGULAR_EXPRESSION) when CXX was not found.
 if(NOT CXX OR NOT EXISTS "${CXX}")
   message("strict warnings: no compiler '${CXX}' (tools/deps.sh installs g++ and clang): skipped")
@@ -14,6 +16,9 @@ if(NOT CXX OR NOT EXISTS "${CXX}")
 endif()
 set(strict -std=c++20 -Wall -Wextra -Wpedantic -Wconversion -Wsign-conversion -Wshadow -Werror -fsyntax-only
     -I${INCLUDE_DIR})
+foreach(d ${SYSTEM_INCLUDE})
+  list(APPEND strict -isystem ${d})   # as CMake passes an imported target's headers
+endforeach()
 set(failures "")
 set(checked 0)
 
@@ -43,9 +48,6 @@ elseif(MODE STREQUAL "instantiations")
   endif()
   if(HAVE_TBB)
     list(APPEND backends -DDYNBVH_WITH_TBB=1)
-    foreach(d ${TBB_INCLUDE})
-      list(APPEND backends -isystem ${d})   # as CMake passes an imported target's headers
-    endforeach()
   endif()
   list(JOIN backends " " backends_text)
   foreach(src ${SOURCES})
@@ -55,6 +57,12 @@ elseif(MODE STREQUAL "instantiations")
       check("${name} with ${backends_text}" ${backends} ${src})
     endif()
   endforeach()
+  if(HAVE_OMP AND HAVE_TBB)
+    foreach(src ${BACKEND_SOURCES})
+      get_filename_component(name ${src} NAME)
+      check("${name} with ${backends_text}" ${backends} ${src})
+    endforeach()
+  endif()
 else()
   message(FATAL_ERROR "strict warnings: MODE must be headers or instantiations, not '${MODE}'")
 endif()

@@ -37,9 +37,13 @@ using precomputed [[deprecated("use dynbvh::prim::copied")]] = copied;
 /// A primitive policy that stores more per leaf slot adds its arrays here.
 template <class Scalar, class Index, class PrimPolicy>
 struct LeafPart {
+    /// The bounds' and triangles' scalar type.
     using scalar_type = Scalar;
+    /// The type of the references (`prim_ids`) and node indices.
     using index_type = Index;
+    /// prim::indexed or prim::copied.
     using prim_policy = PrimPolicy;
+    /// The triangle type the tree is built over.
     using triangle_type = Triangle<Scalar>;
     /// Whether leaves read `leaf_triangles` (prim::copied) instead of the user's array.
     static constexpr bool precomputed = std::is_same_v<PrimPolicy, prim::copied>;
@@ -56,6 +60,7 @@ struct LeafPart {
 
     /// This part alone (to move it between trees).
     LeafPart& leaves() noexcept { return *this; }
+    /// This part alone, read-only.
     const LeafPart& leaves() const noexcept { return *this; }
     /// The triangle behind leaf slot `slot`.
     const triangle_type& triangle(std::span<const triangle_type> tris, std::size_t slot) const noexcept {
@@ -73,8 +78,11 @@ struct LeafPart {
 /// @tparam PrimPolicy  prim::indexed (default) or prim::copied
 template <class NodeT = Node<>, class PrimPolicy = prim::indexed>
 struct Bvh : LeafPart<typename NodeT::scalar_type, typename NodeT::index_type, PrimPolicy> {
+    /// The binary node layout.
     using node_type = NodeT;
+    /// The shared leaf part (LeafPart).
     using leaf_part = LeafPart<typename NodeT::scalar_type, typename NodeT::index_type, PrimPolicy>;
+    /// The bounds' scalar type (float or double).
     using scalar_type = typename NodeT::scalar_type;   // the rest (index_type, prim_policy, ...) from LeafPart
 
     /// Root at 0; an inner node's children are adjacent (see node.hpp). Empty when there is nothing to trace.
@@ -86,7 +94,9 @@ struct Bvh : LeafPart<typename NodeT::scalar_type, typename NodeT::index_type, P
     /// Edges from the root to the deepest leaf (0 for a single leaf); always <= max_depth.
     std::uint32_t depth = 0;
 
+    /// True when there is nothing to trace (no triangle, or none finite).
     bool empty() const noexcept { return nodes.empty(); }
+    /// The root's box (the empty box for an empty tree).
     AABB<scalar_type> bounds() const noexcept { return empty() ? AABB<scalar_type>{} : nodes[0].bounds(); }
     /// Bytes held by the tree (nodes, references and copied leaf triangles).
     std::size_t memory_bytes() const noexcept { return nodes.size() * sizeof(NodeT) + this->leaf_bytes(); }

@@ -79,23 +79,29 @@ T blocked_exclusive_scan(const Exec& ex, std::span<const T> in, std::span<T> out
 
 /// Runs everything on the calling thread. Always available.
 struct serial {
+    /// Number of workers: 1.
     std::size_t concurrency() const noexcept { return 1; }
 
+    /// f(i) for i in [b, e), in order (the grain is ignored).
     template <class F> void for_each(std::size_t b, std::size_t e, F&& f, std::size_t = 0) const {
         for (std::size_t i = b; i < e; ++i) f(i);
     }
+    /// f(b, e) once (the grain is ignored).
     template <class F> void for_blocks(std::size_t b, std::size_t e, F&& f, std::size_t = 0) const {
         if (b < e) f(b, e);
     }
+    /// f(k) for k in [0, n), in order.
     template <class F> void for_tasks(std::size_t n, F&& f) const {
         for (std::size_t k = 0; k < n; ++k) f(k);
     }
+    /// combine(... combine(identity, map(b)) ..., map(e - 1)), left to right.
     template <class T, class Map, class Combine>
     T reduce(std::size_t b, std::size_t e, T identity, Map&& map, Combine&& combine) const {
         T acc = identity;
         for (std::size_t i = b; i < e; ++i) acc = combine(acc, map(i));
         return acc;
     }
+    /// out[i] = in[0] + ... + in[i - 1]; returns the total. `in` and `out` may be the same array.
     template <class T> T exclusive_scan(std::span<const T> in, std::span<T> out) const {
         return detail::serial_exclusive_scan(in, out);
     }
@@ -104,11 +110,15 @@ struct serial {
 #if defined(_OPENMP)
 /// OpenMP backend. `threads == 0` uses omp_get_max_threads().
 struct omp {
+    /// Threads to use; 0 (default): omp_get_max_threads() (OMP_NUM_THREADS).
     int threads = 0;
 
+    /// Number of workers, nthreads().
     std::size_t concurrency() const noexcept { return static_cast<std::size_t>(nthreads()); }
+    /// `threads`, or omp_get_max_threads() when it is 0.
     int nthreads() const noexcept { return threads > 0 ? threads : omp_get_max_threads(); }
 
+    /// f(i) for i in [b, e) in parallel (static schedule); ranges of at most `grain` indices run on the calling thread.
     template <class F> void for_each(std::size_t b, std::size_t e, F&& f, std::size_t grain = 1024) const {
         if (e <= b) return;
         if (e - b <= grain || nthreads() == 1) {
@@ -118,6 +128,8 @@ struct omp {
 #pragma omp parallel for schedule(static) num_threads(nthreads())
         for (std::size_t i = b; i < e; ++i) f(i);
     }
+    /// f(lo, hi) over contiguous chunks of [b, e) of at least about `grain` indices (at most 4 chunks per
+    /// thread), dynamically scheduled.
     template <class F> void for_blocks(std::size_t b, std::size_t e, F&& f, std::size_t grain = 1024) const {
         if (e <= b) return;
         const std::size_t n = e - b;
@@ -131,11 +143,14 @@ struct omp {
             if (lo < hi) f(lo, hi);
         }
     }
+    /// f(k) for k in [0, n), one task each, dynamically scheduled; all may run at once.
     template <class F> void for_tasks(std::size_t n, F&& f) const {
         if (n == 1 || nthreads() == 1) { for (std::size_t k = 0; k < n; ++k) f(k); return; }
 #pragma omp parallel for schedule(dynamic, 1) num_threads(nthreads())
         for (std::size_t k = 0; k < n; ++k) f(k);
     }
+    /// `combine` over map(i) for i in [b, e), from `identity`; `combine` must be associative (chunks are
+    /// reduced in order and combined in index order, so the result does not depend on timing).
     template <class T, class Map, class Combine>
     T reduce(std::size_t b, std::size_t e, T identity, Map&& map, Combine&& combine) const {
         if (e <= b) return identity;
@@ -153,6 +168,7 @@ struct omp {
         for (const T& p : partial) acc = combine(acc, p);
         return acc;
     }
+    /// out[i] = in[0] + ... + in[i - 1] in two parallel passes; returns the total. `in` and `out` may be the same array.
     template <class T> T exclusive_scan(std::span<const T> in, std::span<T> out) const {
         return detail::blocked_exclusive_scan(*this, in, out);
     }
@@ -186,15 +202,19 @@ struct tbb {
 /// created on first use and shared by copies. One object may be used by several threads at once (builders
 /// take it by const&): the arena is created exactly once (std::call_once).
 struct tbb {
+    /// Threads of a private arena; 0 (default): TBB's default arena.
     int threads = 0;
 
     tbb() = default;
+    /// A backend running in a private arena of `n` threads (0: TBB's default arena).
     explicit tbb(int n) : threads(n) {}
 
+    /// `threads`, or the current arena's max_concurrency() when it is 0.
     std::size_t concurrency() const {
         return static_cast<std::size_t>(threads > 0 ? threads : ::tbb::this_task_arena::max_concurrency());
     }
 
+    /// f(i) for i in [b, e) with tbb::parallel_for (`grain`: the blocked_range grain size).
     template <class F> void for_each(std::size_t b, std::size_t e, F&& f, std::size_t grain = 1024) const {
         if (e <= b) return;
         run([&] {
@@ -204,6 +224,7 @@ struct tbb {
                                 });
         });
     }
+    /// f(lo, hi) over the chunks tbb::parallel_for splits [b, e) into (`grain`: the blocked_range grain size).
     template <class F> void for_blocks(std::size_t b, std::size_t e, F&& f, std::size_t grain = 1024) const {
         if (e <= b) return;
         run([&] {
@@ -211,11 +232,14 @@ struct tbb {
                                 [&](const ::tbb::blocked_range<std::size_t>& r) { f(r.begin(), r.end()); });
         });
     }
+    /// f(k) for k in [0, n) in parallel.
     template <class F> void for_tasks(std::size_t n, F&& f) const {
         run([&] {
             ::tbb::parallel_for(std::size_t(0), n, [&](std::size_t k) { f(k); });
         });
     }
+    /// tbb::parallel_reduce of map(i) over [b, e) with `combine` (associative); TBB chooses the split, so
+    /// a floating-point reduction may round differently from run to run.
     template <class T, class Map, class Combine>
     T reduce(std::size_t b, std::size_t e, T identity, Map&& map, Combine&& combine) const {
         if (e <= b) return identity;
@@ -231,6 +255,7 @@ struct tbb {
         });
         return result;
     }
+    /// out[i] = in[0] + ... + in[i - 1] in two parallel passes; returns the total. `in` and `out` may be the same array.
     template <class T> T exclusive_scan(std::span<const T> in, std::span<T> out) const {
         return detail::blocked_exclusive_scan(*this, in, out);
     }

@@ -137,6 +137,7 @@ namespace box {
 /// reciprocal would overflow (see detail::direction_scale_exponent): traversal converts tmax once per
 /// hit, not once per box.
 struct robust {
+    /// The ray's constants for this test, computed once per ray.
     template <class T>
     struct prepared {
         Vec3<T> org;       ///< ray origin
@@ -145,6 +146,7 @@ struct robust {
         T t_scale = 1;     ///< 2^-k: box distances are the ray's t times this (1 for all but subnormal directions)
         int octant = 0;    ///< bit a set when dir[a] has its sign bit set (so -0 counts as negative)
 
+        /// Prepares `r`: reciprocal direction (scaled for subnormal components), octant, tmin.
         explicit prepared(const Ray<T>& r) noexcept : org(r.org), tmin(detail::prepared_tmin(r)) {
             detail::check_scalar<T>();
             const int k = detail::direction_scale_exponent(r.dir);
@@ -207,14 +209,18 @@ struct robust {
 /// to an axis and lying exactly in the box's max face on that axis (with +0) or min face (with -0)
 /// therefore counts as leaving the box. Use box::robust where that matters. Same interface as robust.
 struct fast {
+    /// The ray's constants for this test, computed once per ray.
     template <class T>
     struct prepared {
         Vec3<T> inv;       ///< 1 / dir (tiny components replaced, see above)
         Vec3<T> org_inv;   ///< org * inv
+        /// ray.tmin (NaN for a ray that is not traceable: then nothing is hit)
         T tmin;
         static constexpr T t_scale = 1;  ///< never scaled (see box::robust): tiny components are replaced instead
+        /// bit a set when dir[a] has its sign bit set
         int octant = 0;
 
+        /// Prepares `r`: reciprocal direction (tiny components replaced), org * inv, octant, tmin.
         explicit prepared(const Ray<T>& r) noexcept : tmin(detail::prepared_tmin(r)) {
             detail::check_scalar<T>();
             constexpr T tiny = std::is_same_v<T, float> ? T(1e-30) : T(1e-300);
@@ -227,6 +233,7 @@ struct fast {
         }
     };
 
+    /// As box::robust::test_octant, without the margin: may report a miss for a box the ray only grazes.
     template <int Oct, class T>
     static DYNBVH_ALWAYS_INLINE bool test_octant(const prepared<T>& p, const Vec3<T>& lo, const Vec3<T>& hi, T tmax,
                                                  T& tentry) noexcept {
@@ -242,11 +249,13 @@ struct fast {
         return tn <= tf;
     }
 
+    /// `test_octant` with the octant read at run time.
     template <class T>
     static bool test(const prepared<T>& p, const Vec3<T>& lo, const Vec3<T>& hi, T tmax, T& tentry) noexcept {
         return detail::dispatch_octant(p.octant, [&](auto oct) { return test_octant<decltype(oct)::value>(p, lo, hi, tmax, tentry); });
     }
 
+    /// Whether a box entered at `tentry` can still hold a hit closer than `tmax`.
     template <class T>
     static DYNBVH_ALWAYS_INLINE bool before(T tentry, T tmax) noexcept { return tentry <= tmax; }
 };
@@ -275,16 +284,21 @@ namespace tri {
 /// Interface shared by every triangle policy: `prepared<T>(ray)`; `test(p, tri, tmax, t, u, v)`,
 /// true for a hit with t in [ray.tmin, tmax] (t, u, v written only then).
 struct watertight {
+    /// The ray's constants for this test, computed once per ray.
     template <class T>
     struct prepared {
+        /// ray origin
         Vec3<T> org;
         int kz = 2;                   ///< axis of the largest |dir| (kx = kz + 1, ky = kz + 2, mod 3)
+        /// shear dir[kx] / dir[kz] (sy: dir[ky] / dir[kz])
         T sx = 0, sy = 0;             ///< shear dir[kx] / dir[kz], dir[ky] / dir[kz]
         T tmin;                       ///< NaN for a ray that is not traceable: then nothing is hit
         Vec3d org_d;                  ///< origin in double, for t, u, v
+        /// shear in double (sx)
         double sx_d = 0, sy_d = 0;    ///< shear in double
         double rcp_dz = 1;            ///< 1 / dir[kz] in double
 
+        /// Prepares `r`: dominant axis and shear (one division per ray).
         explicit prepared(const Ray<T>& r) noexcept : org(r.org), tmin(detail::prepared_tmin(r)), org_d(r.org) {
             detail::check_scalar<T>();
             const Vec3<T> a{std::abs(r.dir.x), std::abs(r.dir.y), std::abs(r.dir.z)};
@@ -412,15 +426,22 @@ private:
 /// Front and back faces both hit; triangles parallel to the ray (det == 0) miss. Same interface as
 /// watertight.
 struct moller_trumbore {
+    /// The ray's constants for this test.
     template <class T>
     struct prepared {
+        /// @{
+        /// ray origin and direction
         Vec3<T> org, dir;
+        /// @}
+        /// ray.tmin (NaN for a ray that is not traceable: then nothing is hit)
         T tmin;
+        /// Copies what the test needs from `r`.
         explicit prepared(const Ray<T>& r) noexcept : org(r.org), dir(r.dir), tmin(detail::prepared_tmin(r)) {
             detail::check_scalar<T>();
         }
     };
 
+    /// True for a hit with t in [p.tmin, tmax]; writes t, u, v only then.
     template <class T>
     static DYNBVH_ALWAYS_INLINE bool test(const prepared<T>& p, const Triangle<T>& tri, T tmax, T& t, T& u, T& v) noexcept {
         const Vec3<T> e1 = tri.p1 - tri.p0, e2 = tri.p2 - tri.p0;

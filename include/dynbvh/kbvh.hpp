@@ -32,17 +32,25 @@ namespace dynbvh::kbvh {
 /// Builder policies: which builder runs over the fragments. A policy names its Config and
 /// forwards to that builder's build_tree (which may reorder the references).
 struct with_ploc {
+    /// The builder's Config (kbvh::Config::builder).
     using config = ploc::Config;
+    /// The builder's raw tree over the fragments (may reorder `refs`).
     template <class T, class Exec>
     static BinaryTree build_tree(References<T>& refs, const config& cfg, const Exec& ex) { return ploc::build_tree(refs, cfg, ex); }
 };
+/// LBVH over the fragments (lbvh.hpp): the fastest build.
 struct with_lbvh {
+    /// The builder's Config (kbvh::Config::builder).
     using config = lbvh::Config;
+    /// The builder's raw tree over the fragments (may reorder `refs`).
     template <class T, class Exec>
     static BinaryTree build_tree(References<T>& refs, const config& cfg, const Exec& ex) { return lbvh::build_tree(refs, cfg, ex); }
 };
+/// Binned SAH over the fragments (binned_sah.hpp): the best tree, the slowest build.
 struct with_binned_sah {
+    /// The builder's Config (kbvh::Config::builder).
     using config = binned_sah::Config;
+    /// The builder's raw tree over the fragments (may reorder `refs`).
     template <class T, class Exec>
     static BinaryTree build_tree(References<T>& refs, const config& cfg, const Exec& ex) { return binned_sah::build_tree(refs, cfg, ex); }
 };

@@ -20,7 +20,9 @@ namespace dynbvh {
 template <class Scalar = float, class Index = std::uint32_t>
 struct Node {
     static_assert(std::is_floating_point_v<Scalar> && std::is_unsigned_v<Index>);
+    /// The bounds' scalar type.
     using scalar_type = Scalar;
+    /// The type of `index` and `count`.
     using index_type = Index;
 
     Vec3<Scalar> min;   ///< lower corner of the bounds
@@ -28,10 +30,15 @@ struct Node {
     Index index = 0;    ///< inner: index of the first child (second is index + 1); leaf: first prim_ids slot
     Index count = 0;    ///< 0 for inner nodes, number of references for leaves
 
+    /// True for a leaf (count > 0).
     constexpr bool is_leaf() const noexcept { return count != 0; }
+    /// The node's box.
     constexpr AABB<Scalar> bounds() const noexcept { return {min, max}; }
+    /// Sets the node's box.
     constexpr void set_bounds(const AABB<Scalar>& b) noexcept { min = b.min; max = b.max; }
+    /// Index of the first child (inner nodes only).
     constexpr Index left() const noexcept { return index; }
+    /// Index of the second child, left() + 1 (inner nodes only).
     constexpr Index right() const noexcept { return index + 1; }
 };
 

@@ -42,7 +42,9 @@ namespace trace {
 /// A traversal policy: one box test (namespace box) and one triangle test (namespace tri).
 template <class Box, class Tri>
 struct policy {
+    /// The box test (namespace box).
     using box_test = Box;
+    /// The triangle test (namespace tri).
     using triangle_test = Tri;
 };
 /// Default: no hit lost to rounding, watertight triangles (Ize 2013 + Woop et al. 2013).

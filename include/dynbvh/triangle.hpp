@@ -16,18 +16,26 @@ namespace dynbvh {
 /// meshes flatten them with `make_triangles` once per frame.
 template <class T>
 struct Triangle {
+    /// @{
+    /// The vertices in scene units; their order sets the normal's direction and the meaning of u, v.
     Vec3<T> p0, p1, p2;
+    /// @}
 
+    /// The triangle's bounding box.
     constexpr AABB<T> bounds() const noexcept { AABB<T> b; b.extend(p0).extend(p1).extend(p2); return b; }
+    /// Mean of the three vertices.
     constexpr Vec3<T> centroid() const noexcept { return (p0 + p1 + p2) * (T(1) / T(3)); }
     /// Geometric (unnormalised) normal, (p1 - p0) x (p2 - p0).
     constexpr Vec3<T> normal() const noexcept { return cross(p1 - p0, p2 - p0); }
     /// Area in square scene units.
     T area() const noexcept { return T(0.5) * length(normal()); }
+    /// True when no vertex has a NaN or infinite coordinate (builders leave the others out).
     bool is_finite() const noexcept { return dynbvh::is_finite(p0) && dynbvh::is_finite(p1) && dynbvh::is_finite(p2); }
 };
 
+/// Single-precision triangle (36 bytes): what the loaders produce.
 using Trianglef = Triangle<float>;
+/// Double-precision triangle (72 bytes), for `Node<double, ...>` trees.
 using Triangled = Triangle<double>;
 
 /// Flattens an indexed mesh into triangles. Indices out of range throw std::out_of_range.

@@ -40,7 +40,9 @@ struct ValidationReport {
     std::size_t references = 0;        ///< leaf references reached
     std::uint32_t depth = 0;           ///< depth measured (edges root -> deepest leaf)
 
+    /// True when no check failed.
     bool ok() const noexcept { return error_count == 0; }
+    /// Same as ok().
     explicit operator bool() const noexcept { return ok(); }
     /// One line per failure (plus "... and N more"), or a one-line summary when the tree is valid.
     std::string summary() const {

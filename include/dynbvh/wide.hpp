@@ -50,12 +50,21 @@ template <class Scalar = float, class Index = std::uint32_t, int W = 4>
 struct alignas(64) WideNode {
     static_assert(std::is_floating_point_v<Scalar> && std::is_unsigned_v<Index>);
     static_assert(W == 4 || W == 8, "wide nodes have 4 or 8 children");
+    /// The boxes' scalar type.
     using scalar_type = Scalar;
+    /// The type of `child` and `count`.
     using index_type = Index;
+    /// Children per node (4 or 8).
     static constexpr int width = W;
 
+    // Bounds std::size_t(W): an int bound warns under g++ -Wsign-conversion.
+    /// @{
+    /// Child boxes, structure of arrays: slot k is [lo_x[k], hi_x[k]] x [lo_y[k], hi_y[k]] x [lo_z[k], hi_z[k]].
     Scalar lo_x[std::size_t(W)], hi_x[std::size_t(W)], lo_y[std::size_t(W)], hi_y[std::size_t(W)], lo_z[std::size_t(W)], hi_z[std::size_t(W)];
-    Index child[std::size_t(W)];   // size_t(W): an int bound warns under g++ -Wsign-conversion
+    /// @}
+    /// Slot k: the child node's index (inner child), or its first prim_ids slot (leaf).
+    Index child[std::size_t(W)];
+    /// Slot k: the leaf's reference count; 0 for an inner child or an empty slot.
     Index count[std::size_t(W)];
 
     /// Marks every slot empty.
@@ -68,9 +77,13 @@ struct alignas(64) WideNode {
             count[k] = 0;
         }
     }
+    /// True when slot k holds nothing (inverted box).
     constexpr bool empty_slot(int k) const noexcept { return !(lo_x[k] <= hi_x[k]); }
+    /// True when slot k is a leaf.
     constexpr bool is_leaf(int k) const noexcept { return count[k] != 0; }
+    /// The box of slot k.
     constexpr AABB<Scalar> bounds(int k) const noexcept { return {{lo_x[k], lo_y[k], lo_z[k]}, {hi_x[k], hi_y[k], hi_z[k]}}; }
+    /// Sets the box of slot k.
     constexpr void set_bounds(int k, const AABB<Scalar>& b) noexcept {
         lo_x[k] = b.min.x; lo_y[k] = b.min.y; lo_z[k] = b.min.z;
         hi_x[k] = b.max.x; hi_y[k] = b.max.y; hi_z[k] = b.max.z;
@@ -91,9 +104,13 @@ static_assert(sizeof(WideNode<float, std::uint32_t, 8>) == 256, "the 8-wide node
 /// from, `WideBvh<WideNodeT, Prim>` as `Bvh<NodeT, Prim>`. Made by `make_wide` from a binary `Bvh`.
 template <class WideNodeT = WideNode<>, class PrimPolicy = prim::indexed>
 struct WideBvh : LeafPart<typename WideNodeT::scalar_type, typename WideNodeT::index_type, PrimPolicy> {
+    /// The wide node layout.
     using node_type = WideNodeT;
+    /// The leaf part shared with the binary tree (LeafPart).
     using leaf_part = LeafPart<typename WideNodeT::scalar_type, typename WideNodeT::index_type, PrimPolicy>;
+    /// The boxes' scalar type (float or double).
     using scalar_type = typename WideNodeT::scalar_type;   // the rest (index_type, prim_policy, ...) from LeafPart
+    /// Children per node (4 or 8).
     static constexpr int width = WideNodeT::width;
 
     /// Root at 0; the children of a node are adjacent (top levels breadth first, subtrees below them depth
@@ -103,8 +120,11 @@ struct WideBvh : LeafPart<typename WideNodeT::scalar_type, typename WideNodeT::i
     /// Edges from the root to the deepest wide node (a leaf slot of that node is one level deeper).
     std::uint32_t depth = 0;
 
+    /// True when there is nothing to trace.
     bool empty() const noexcept { return nodes.empty(); }
+    /// The root's box (the empty box for an empty tree).
     AABB<scalar_type> bounds() const noexcept { return empty() ? AABB<scalar_type>{} : nodes[0].bounds(); }
+    /// Bytes held by the tree (nodes, references and copied leaf triangles).
     std::size_t memory_bytes() const noexcept { return nodes.size() * sizeof(node_type) + this->leaf_bytes(); }
 };
 

@@ -94,8 +94,10 @@ struct BartOptions {
     long detail_level = 0;
     /// Limits against malicious or broken input (include bombs, cycles through links).
     std::size_t max_include_depth = 64;
+    /// Most `i` includes in all (repeats counted); beyond, LoadError.
     std::size_t max_includes = 1'000'000;
     std::uint64_t max_bytes = std::uint64_t(1) << 30;    ///< total bytes parsed, includes repeated
+    /// Most triangles in all; beyond, LoadError.
     std::uint64_t max_triangles = std::uint64_t(1) << 27;
 };
 
@@ -109,11 +111,14 @@ struct BartStats {
     std::size_t polygons = 0;            ///< `p` and `pp`
     std::size_t polygon_triangles = 0;   ///< their fan triangles
     std::size_t meshes = 0;              ///< `m`
+    /// their triangles
     std::size_t mesh_triangles = 0;
     std::size_t textured_triangles = 0;  ///< `tt` and `ttp`
     std::size_t animated_triangles = 0;  ///< `tpa`
+    /// `c`
     std::size_t cones = 0;
     std::size_t cone_triangles = 0;      ///< only with BartOptions::tessellate_cones
+    /// `s`
     std::size_t spheres = 0;
     std::size_t static_transforms = 0;   ///< `xs`
     std::size_t animated_transforms = 0; ///< `x`
@@ -122,20 +127,35 @@ struct BartStats {
 
 /// A cone or cylinder (`c`) in the space of its transform node; see BartScene::node_transform.
 struct BartCone {
+    /// @{
+    /// Centres of the base and the apex circle.
     Vec3f base{}, apex{};
+    /// @}
+    /// @{
+    /// Radii at the base and at the apex.
     float base_radius = 0, apex_radius = 0;   ///< negative radii (inside visible) made positive
+    /// @}
+    /// @{
+    /// Material (into SceneInfo::materials) and transform node (BartScene::node_transform).
     std::uint32_t material = 0, node = 0;
+    /// @}
 };
 /// A sphere (`s`) in the space of its transform node.
 struct BartSphere {
+    /// Centre, in its transform node's space.
     Vec3f center{};
+    /// Radius.
     float radius = 0;
+    /// @{
+    /// Material (into SceneInfo::materials) and transform node (BartScene::node_transform).
     std::uint32_t material = 0, node = 0;
+    /// @}
 };
 
 namespace bart {
 /// Row-major 3x4 affine matrix in double (composition of the transform hierarchy).
 struct Affine {
+    /// Rows m[0..3], m[4..7], m[8..11]: the linear part, and the translation in column 3.
     std::array<double, 12> m{1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0};
 
     /// T * R * S: scale first, then rotate, then translate (BART's order).
@@ -148,6 +168,7 @@ struct Affine {
         }
         return a;
     }
+    /// Composition: (a * b).apply(p) == a.apply(b.apply(p)) up to rounding.
     friend Affine operator*(const Affine& a, const Affine& b) noexcept {
         Affine r;
         for (std::size_t row = 0; row < 3; ++row)
@@ -158,10 +179,12 @@ struct Affine {
             }
         return r;
     }
+    /// The transformed point, rounded to float.
     Vec3f apply(const Vec3f& p) const noexcept {
         return {float(m[0] * p.x + m[1] * p.y + m[2] * p.z + m[3]), float(m[4] * p.x + m[5] * p.y + m[6] * p.z + m[7]),
                 float(m[8] * p.x + m[9] * p.y + m[10] * p.z + m[11])};
     }
+    /// The same transform as a column-major io::Transform.
     Transform to_transform() const noexcept {
         Transform t;
         for (std::size_t row = 0; row < 3; ++row)
@@ -174,13 +197,21 @@ struct Affine {
 
 /// The keyframe tracks of one `k name { ... }` block.
 struct Animation {
+    /// The name after `k`: the transform, light or camera it moves.
     std::string name;
+    /// @{
+    /// Translation and scale tracks (`transl`, `scale`), when present.
     std::optional<VectorSpline> translation, scale;
+    /// @}
+    /// Rotation track (`rot`), when present.
     std::optional<RotationSpline> rotation;
     std::vector<std::pair<double, bool>> visibility;   ///< (time, visible), times non-decreasing
+    /// File of the `k` block (for messages).
     std::string file;
+    /// Line of the `k` block in `file`.
     std::size_t line = 0;
 
+    /// True when some track (translation, rotation, scale) is present.
     bool moves() const noexcept { return translation || rotation || scale; }
     /// T * R * S at time t (file clock); missing tracks are identity.
     Affine matrix(double t) const noexcept {
@@ -210,6 +241,7 @@ class Parser;
 /// builders skip them (make_references drops non-finite triangles).
 class BartScene final : public Scene {
 public:
+    /// Name, frame count, materials and lights (see SceneInfo).
     const SceneInfo& info() const override { return info_; }
 
     /// Frame i at the frame rate of BartOptions::fps (default: BART's own `a` frame count).
@@ -237,10 +269,12 @@ public:
     }
     /// The animation's time range in the file's clock (`a start end frames`; 0, 0 when absent).
     double start_time() const noexcept { return start_; }
+    /// End of that range.
     double end_time() const noexcept { return end_; }
 
     /// Triangles per frame (constant), of which the first static_triangle_count() never move.
     std::size_t triangle_count() const noexcept { return static_tris_.size() + anim_local_.size(); }
+    /// Triangles that never move: the first ones of every frame.
     std::size_t static_triangle_count() const noexcept { return static_tris_.size(); }
 
     /// Camera `seconds` after the start (the `v` viewpoint, moved by `k camera` if present).
@@ -252,11 +286,17 @@ public:
 
     /// Output resolution and near plane of the `v` viewpoint; background and global ambient colour.
     std::array<int, 2> resolution() const noexcept { return resolution_; }
+    /// Near plane distance of the viewpoint.
     float hither() const noexcept { return hither_; }
+    /// Background colour.
     Vec3f background() const noexcept { return background_; }
+    /// Global ambient colour.
     Vec3f ambient() const noexcept { return ambient_; }
+    /// Every `c` cone or cylinder, in its transform node's space.
     const std::vector<BartCone>& cones() const noexcept { return cones_; }
+    /// Every `s` sphere, in its transform node's space.
     const std::vector<BartSphere>& spheres() const noexcept { return spheres_; }
+    /// What the file held (see BartStats).
     const BartStats& stats() const noexcept { return stats_; }
 
 private:
@@ -348,6 +388,7 @@ inline std::optional<std::string> read_file(const std::string& path) {
 /// Whitespace-separated tokens with `#`/`%` comments; `{` and `}` are tokens of their own.
 class Lexer {
 public:
+    /// Tokens of `text` (not copied: it must outlive the lexer).
     explicit Lexer(std::string_view text) noexcept : p_(text.data()), end_(text.data() + text.size()) {}
 
     /// Next token, empty at the end of the input (line() then stays at the last token's line).
@@ -363,6 +404,7 @@ public:
         }
         return {b, static_cast<std::size_t>(p_ - b)};
     }
+    /// The next token without consuming it.
     std::string_view peek() noexcept {
         const char* p = p_;
         const std::size_t line = line_, tl = tok_line_;
@@ -374,6 +416,7 @@ public:
     }
     /// Line (1-based) of the last token returned by next().
     std::size_t line() const noexcept { return tok_line_; }
+    /// Bytes not yet consumed.
     std::size_t remaining() const noexcept { return static_cast<std::size_t>(end_ - p_); }
 
 private:
@@ -400,6 +443,7 @@ inline std::string show(std::string_view t) {
     return s;
 }
 
+/// Parses all of `t` as a double (std::from_chars, plus an optional leading '+'); false when it is not wholly one number.
 inline bool parse_double(std::string_view t, double& v) noexcept {
     const char* b = t.data();
     const char* e = b + t.size();
@@ -415,6 +459,7 @@ inline bool parse_double(std::string_view t, double& v) noexcept {
 /// Builds a BartScene from AFF text (one instance per load).
 class Parser {
 public:
+    /// A parser that fills `scene`; `entry` is the entry file's path (includes resolve against its directory).
     Parser(BartScene& scene, const BartOptions& options, const BartResolver& resolver, const std::string& entry)
         : s_(scene), opt_(options), resolver_(resolver), detail_(options.detail_level) {
         entry_dir_ = std::filesystem::path(entry).lexically_normal().parent_path().generic_string();
@@ -422,6 +467,7 @@ public:
         s_.info_.materials.push_back(Material{.name = "default"});
     }
 
+    /// Parses `text`, the contents of `entry`, and its includes into the scene; throws LoadError on bad input.
     void run(const std::string& entry, std::string_view text) {
         include_stack_.push_back(std::filesystem::path(entry).lexically_normal().generic_string());
         bytes_ = text.size();

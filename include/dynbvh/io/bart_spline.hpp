@@ -32,35 +32,55 @@ namespace dynbvh::io::bart {
 /// One key of a translation or scale track: value at time `t` (seconds) plus the
 /// Kochanek–Bartels shape parameters at that key (all 0 = Catmull–Rom).
 struct VectorKey {
+    /// Time of the key in seconds (the file's clock).
     double t = 0;
+    /// Value at `t`.
     std::array<double, 3> value{};
+    /// @{
+    /// Kochanek–Bartels tension, continuity and bias at this key (all 0: Catmull–Rom).
     double tension = 0, continuity = 0, bias = 0;
+    /// @}
 };
 
 /// One key of a rotation track: `angle` radians about `axis` (any length > 0; normalised).
 struct RotationKey {
+    /// Time of the key in seconds (the file's clock).
     double t = 0;
+    /// Rotation axis (any length > 0).
     std::array<double, 3> axis{1, 0, 0};
+    /// Rotation angle in radians.
     double angle = 0;
+    /// @{
+    /// Kochanek–Bartels tension, continuity and bias at this key (all 0: Catmull–Rom).
     double tension = 0, continuity = 0, bias = 0;
+    /// @}
 };
 
 /// Quaternion w + xi + yj + zk (unit quaternions represent rotations).
 struct Quaternion {
+    /// @{
+    /// The components w + xi + yj + zk; the default is the identity rotation.
     double w = 1, x = 0, y = 0, z = 0;
+    /// @}
 
+    /// Hamilton product: a * b rotates by b, then by a.
     friend Quaternion operator*(const Quaternion& a, const Quaternion& b) noexcept {
         return {a.w * b.w - a.x * b.x - a.y * b.y - a.z * b.z, a.w * b.x + a.x * b.w + a.y * b.z - a.z * b.y,
                 a.w * b.y - a.x * b.z + a.y * b.w + a.z * b.x, a.w * b.z + a.x * b.y - a.y * b.x + a.z * b.w};
     }
+    /// Scaling by `s`.
     friend Quaternion operator*(double s, const Quaternion& q) noexcept { return {s * q.w, s * q.x, s * q.y, s * q.z}; }
+    /// Component-wise sum.
     friend Quaternion operator+(const Quaternion& a, const Quaternion& b) noexcept {
         return {a.w + b.w, a.x + b.x, a.y + b.y, a.z + b.z};
     }
+    /// Component-wise difference.
     friend Quaternion operator-(const Quaternion& a, const Quaternion& b) noexcept {
         return {a.w - b.w, a.x - b.x, a.y - b.y, a.z - b.z};
     }
+    /// 4D dot product (negative: q and -q, the same rotation, are nearer; used to pick the short arc).
     friend double dot(const Quaternion& a, const Quaternion& b) noexcept { return a.w * b.w + a.x * b.x + a.y * b.y + a.z * b.z; }
+    /// w - xi - yj - zk: the inverse of a unit quaternion.
     Quaternion conjugate() const noexcept { return {w, -x, -y, -z}; }
 
     /// Rotation of `angle` radians about `axis` (normalised here; a zero axis gives the identity).
@@ -169,6 +189,7 @@ public:
             detail::add_segment(tmin_, tmax_, reach_, k1.t, k2.t);
         }
     }
+    /// True for a default-constructed spline (no segment).
     bool empty() const noexcept { return polys_.empty(); }
     /// Value at time t (seconds, the file's clock), clamped to [key 1, key n-2].
     std::array<double, 3> operator()(double t) const noexcept {
@@ -196,6 +217,7 @@ private:
 class RotationSpline {
 public:
     RotationSpline() = default;
+    /// `keys.size() >= 4` (the loader checks).
     explicit RotationSpline(const std::vector<RotationKey>& keys) {
         const std::size_t n = keys.size();
         std::vector<Quaternion> raw(n), q(n);
@@ -220,6 +242,7 @@ public:
             detail::add_segment(tmin_, tmax_, reach_, keys[i + 1].t, keys[i + 2].t);
         }
     }
+    /// True for a default-constructed spline (no segment).
     bool empty() const noexcept { return segs_.empty(); }
     /// Rotation at time t (seconds, the file's clock), clamped to [key 1, key n-2].
     Quaternion operator()(double t) const noexcept {

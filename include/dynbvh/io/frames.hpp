@@ -186,6 +186,7 @@ inline void to_frame(const Mesh& m, Frame& out, const std::string& object_name, 
 /// One mesh file as a 1-frame scene.
 class MeshScene final : public Scene {
 public:
+    /// Reads `path` with read_mesh (throws LoadError as it does).
     explicit MeshScene(const std::string& path) {
         Mesh m = read_mesh(path);
         info_.name = std::filesystem::path(path).stem().string();
@@ -194,6 +195,7 @@ public:
         info_.materials = m.materials;
         detail::frames::to_frame(m, frame_, info_.name, false, frame_bounds_camera(m.bounds()), 0);
     }
+    /// Name (the file's stem), 1 frame, Motion::none, the file's materials.
     const SceneInfo& info() const override { return info_; }
     void frame(std::size_t i, Frame& out) override {
         if (i != 0) throw std::out_of_range("dynbvh::io::MeshScene::frame: frame " + std::to_string(i) + " of 1");
@@ -208,6 +210,8 @@ private:
 /// A sequence of mesh files, one per frame, loaded ahead on a background thread.
 class FrameSequence final : public Scene {
 public:
+    /// The frames `files`, in this order, as scene `name`. Reads the first and the last file at once (throws
+    /// LoadError for them, std::invalid_argument for no files) and starts the loader thread when `cfg.prefetch > 0`.
     FrameSequence(std::vector<std::string> files, std::string name, const FramesConfig& cfg)
         : files_(std::move(files)), cfg_(cfg) {
         if (files_.empty()) throw std::invalid_argument("dynbvh::io::FrameSequence: no files");
@@ -244,6 +248,7 @@ public:
         if (thread_.joinable()) thread_.join();
     }
 
+    /// Name, frame count, motion, topology_changes and materials (see the file comment).
     const SceneInfo& info() const override { return info_; }
     /// The file of each frame.
     const std::vector<std::string>& files() const noexcept { return files_; }

@@ -53,8 +53,10 @@
 
 #if __has_include(<tiny_obj_loader.h>)
 #include <tiny_obj_loader.h>
+/// 1 when tinyobjloader's header was found (read_obj needs it: link dynbvh::io), else 0 (read_obj throws).
 #define DYNBVH_HAS_TINYOBJLOADER 1
 #else
+/// 1 when tinyobjloader's header was found (read_obj needs it: link dynbvh::io), else 0 (read_obj throws).
 #define DYNBVH_HAS_TINYOBJLOADER 0
 #endif
 

@@ -21,9 +21,11 @@ namespace dynbvh::io {
 /// Error raised by every loader: names the file, where (line or byte offset) and what is wrong.
 class LoadError : public std::runtime_error {
 public:
+    /// The message is "file:where: what" ("file: what" when `where` is empty).
     LoadError(std::string file, std::string where, std::string what)
         : std::runtime_error(file + (where.empty() ? "" : ":" + where) + ": " + what),
           file_(std::move(file)), where_(std::move(where)) {}
+    /// The file the error concerns.
     const std::string& file() const noexcept { return file_; }
     /// "line N" or "byte N" (may be empty when the problem is the whole file).
     const std::string& where() const noexcept { return where_; }
@@ -34,8 +36,11 @@ private:
 /// Surface description read from MTL and BART `f`/`fm`.
 /// Colours are linear RGB in [0, 1].
 struct Material {
+    /// Name (MTL `newmtl`).
     std::string name;
+    /// Ambient colour (MTL Ka).
     Vec3f ambient{0, 0, 0};
+    /// Diffuse colour (MTL Kd).
     Vec3f diffuse{0.8f, 0.8f, 0.8f};
     Vec3f specular{0, 0, 0};      ///< specular colour (MTL Ks, BART ks)
     float shininess = 0;          ///< Phong exponent (MTL Ns, BART shine)
@@ -47,15 +52,21 @@ struct Material {
 
 /// Point light (BART `l`).
 struct Light {
+    /// Position, world space.
     Vec3f position{0, 0, 0};
+    /// Colour, linear RGB.
     Vec3f color{1, 1, 1};
 };
 
 /// Pinhole camera. `fov_y_deg` is the full vertical field of view in degrees.
 struct Camera {
+    /// Eye position.
     Vec3f from{0, 0, 1};
+    /// The point looked at.
     Vec3f at{0, 0, 0};
+    /// Up direction (need not be orthogonal to the view direction).
     Vec3f up{0, 1, 0};
+    /// Full vertical field of view in degrees.
     float fov_y_deg = 45;
 };
 
@@ -79,14 +90,18 @@ inline Camera frame_bounds_camera(const AABBf& bounds) {
 
 /// A column-major 4x4 affine transform (last row 0 0 0 1).
 struct Transform {
+    /// The 16 entries, column-major: m[12], m[13], m[14] is the translation.
     std::array<float, 16> m{1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1};
+    /// M p for a point (translation applied).
     Vec3f apply_point(const Vec3f& p) const noexcept {
         return {m[0] * p.x + m[4] * p.y + m[8] * p.z + m[12], m[1] * p.x + m[5] * p.y + m[9] * p.z + m[13],
                 m[2] * p.x + m[6] * p.y + m[10] * p.z + m[14]};
     }
+    /// M v for a direction (no translation).
     Vec3f apply_vector(const Vec3f& v) const noexcept {
         return {m[0] * v.x + m[4] * v.y + m[8] * v.z, m[1] * v.x + m[5] * v.y + m[9] * v.z, m[2] * v.x + m[6] * v.y + m[10] * v.z};
     }
+    /// Composition: (a * b) applies b first, then a.
     friend Transform operator*(const Transform& a, const Transform& b) noexcept {
         Transform r;
         for (std::size_t c = 0; c < 4; ++c)
@@ -102,18 +117,26 @@ struct Transform {
 /// One object of a frame: a contiguous run of the frame's triangles and the
 /// world transform already applied to them (so a refit/rebuild choice can be per object).
 struct ObjectInstance {
+    /// Object name (for reports).
     std::string name;
+    /// Index of its first triangle in Frame::triangles.
     std::uint32_t first_triangle = 0;
+    /// Its number of triangles.
     std::uint32_t triangle_count = 0;
+    /// The world transform already applied to its triangles.
     Transform transform;
+    /// True when its triangles may move between frames.
     bool animated = false;
 };
 
 /// Triangle mesh with optional per-face material ids (as read from one PLY/OBJ file).
 struct Mesh {
+    /// Vertex positions, all finite (the readers reject NaN and infinity).
     std::vector<Vec3f> vertices;
+    /// Triangles as three indices into `vertices`, all in range.
     std::vector<std::array<std::uint32_t, 3>> faces;
     std::vector<std::uint32_t> face_material;   ///< empty, or one id per face into `materials`
+    /// Materials that `face_material` indexes (OBJ's MTL; empty for PLY).
     std::vector<Material> materials;
 
     /// Flattened world-space triangles (one per face).
@@ -123,12 +146,14 @@ struct Mesh {
             t[i] = {vertices[faces[i][0]], vertices[faces[i][1]], vertices[faces[i][2]]};
         return t;
     }
+    /// Box of all vertices (referenced or not).
     AABBf bounds() const { AABBf b; for (const auto& v : vertices) b.extend(v); return b; }
 };
 
 /// How the triangles of a scene move from frame to frame (UNC benchmark classes).
 enum class Motion { none, rigid, hierarchical, semi_hierarchical, incoherent };
 
+/// The motion class's name: "none", "rigid", "hierarchical", "semi-hierarchical" or "incoherent".
 inline const char* to_string(Motion m) noexcept {
     switch (m) {
         case Motion::none: return "none";
@@ -143,20 +168,29 @@ inline const char* to_string(Motion m) noexcept {
 /// One evaluated frame: world-space triangles, one material id per triangle
 /// (empty means material 0 everywhere), the objects they belong to, and the camera.
 struct Frame {
+    /// World-space triangles (their count may change between frames when SceneInfo::topology_changes).
     std::vector<Trianglef> triangles;
+    /// One material id per triangle into SceneInfo::materials, or empty (material 0 everywhere).
     std::vector<std::uint32_t> material;
+    /// The objects, each a contiguous run of `triangles`.
     std::vector<ObjectInstance> objects;
+    /// The camera at this frame's time.
     Camera camera;
     double time = 0;   ///< seconds since the animation's start
 };
 
 /// Static description of an animated scene.
 struct SceneInfo {
+    /// Scene name (from the file, pattern or directory).
     std::string name;
+    /// How the triangles move (see Motion).
     Motion motion = Motion::none;
     bool topology_changes = false;   ///< triangle count or connectivity changes between frames
+    /// Number of frames.
     std::size_t frames = 1;
+    /// The materials Frame::material indexes.
     std::vector<Material> materials;
+    /// Point lights (BART; empty for PLY and OBJ).
     std::vector<Light> lights;
 };
 
@@ -165,7 +199,9 @@ struct SceneInfo {
 class Scene {
 public:
     virtual ~Scene() = default;
+    /// Static description: name, motion, frame count, materials, lights.
     virtual const SceneInfo& info() const = 0;
+    /// Number of frames, info().frames.
     std::size_t frame_count() const { return info().frames; }
     /// Evaluates frame `i` (0 <= i < frame_count()) into `out`, reusing its capacity.
     /// Throws LoadError (file scenes) or std::out_of_range.
