@@ -47,7 +47,7 @@ struct Affine {
     }
 
 private:
-    T row(int r, const Vec3<T>& p, T add) const noexcept {
+    T row(std::size_t r, const Vec3<T>& p, T add) const noexcept {
         const T* q = m.data() + 4 * r;
         return std::fma(q[0], p.x, std::fma(q[1], p.y, std::fma(q[2], p.z, add)));
     }
@@ -61,7 +61,7 @@ namespace detail {
 template <class T>
 double linear_norm(const Affine<T>& a) noexcept {
     double n = 0;
-    for (int r = 0; r < 3; ++r)
+    for (std::size_t r = 0; r < 3; ++r)
         n = std::max(n, std::abs(double(a.m[4 * r])) + std::abs(double(a.m[4 * r + 1])) + std::abs(double(a.m[4 * r + 2])));
     return n;
 }
@@ -77,7 +77,7 @@ inline constexpr double max_transform_condition = 1e7;
 template <class T>
 Affine<T> inverse(const Affine<T>& a, const std::string& what = "transform") {
     if (!a.is_finite()) throw std::invalid_argument("dynbvh::inverse: " + what + " has a NaN or infinite entry");
-    const auto e = [&](int r, int c) { return double(a.m[std::size_t(4 * r + c)]); };
+    const auto e = [&](std::size_t r, std::size_t c) { return double(a.m[4 * r + c]); };
     // Cofactors of L (row r, column c of the adjugate = cofactor of (c, r)).
     const double c00 = e(1, 1) * e(2, 2) - e(1, 2) * e(2, 1), c01 = e(1, 2) * e(2, 0) - e(1, 0) * e(2, 2),
                  c02 = e(1, 0) * e(2, 1) - e(1, 1) * e(2, 0);
@@ -90,14 +90,14 @@ Affine<T> inverse(const Affine<T>& a, const std::string& what = "transform") {
         {c02 / det, (e(0, 1) * e(2, 0) - e(0, 0) * e(2, 1)) / det, (e(0, 0) * e(1, 1) - e(0, 1) * e(1, 0)) / det}};
     Affine<T> out;
     double inv_norm = 0;
-    for (int r = 0; r < 3; ++r) {
+    for (std::size_t r = 0; r < 3; ++r) {
         double t = 0, row = 0;
-        for (int c = 0; c < 3; ++c) {
+        for (std::size_t c = 0; c < 3; ++c) {
             t -= inv[r][c] * e(c, 3);
             row += std::abs(inv[r][c]);
-            out.m[std::size_t(4 * r + c)] = T(inv[r][c]);
+            out.m[4 * r + c] = T(inv[r][c]);
         }
-        out.m[std::size_t(4 * r + 3)] = T(t);
+        out.m[4 * r + 3] = T(t);
         inv_norm = std::max(inv_norm, row);
     }
     const double cond = detail::linear_norm(a) * inv_norm;

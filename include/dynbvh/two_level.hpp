@@ -302,18 +302,18 @@ private:
         double lo[3] = {std::numeric_limits<double>::infinity(), std::numeric_limits<double>::infinity(),
                         std::numeric_limits<double>::infinity()};
         double hi[3] = {-lo[0], -lo[0], -lo[0]};
-        for (int corner = 0; corner < 8; ++corner) {
+        for (unsigned corner = 0; corner < 8; ++corner) {
             const double p[3] = {double(corner & 1 ? b.max.x : b.min.x), double(corner & 2 ? b.max.y : b.min.y),
                                  double(corner & 4 ? b.max.z : b.min.z)};
-            for (int r = 0; r < 3; ++r) {
-                const auto e = [&](int c) { return double(m.m[std::size_t(4 * r + c)]); };
+            for (std::size_t r = 0; r < 3; ++r) {
+                const auto e = [&](std::size_t c) { return double(m.m[4 * r + c]); };
                 const double w = e(0) * p[0] + e(1) * p[1] + e(2) * p[2] + e(3);
                 lo[r] = std::min(lo[r], w);
                 hi[r] = std::max(hi[r], w);
             }
         }
         double big = 0, extent = 0;
-        for (int r = 0; r < 3; ++r) {
+        for (std::size_t r = 0; r < 3; ++r) {
             big = std::max({big, std::abs(lo[r]), std::abs(hi[r])});
             extent = std::max(extent, hi[r] - lo[r]);
         }
@@ -325,7 +325,7 @@ private:
         alpha = k * (kappa + 1);
         AABB<T> out;
         constexpr T tinf = std::numeric_limits<T>::infinity();
-        for (int r = 0; r < 3; ++r) {
+        for (std::size_t r = 0; r < 3; ++r) {
             const double l = lo[r] - pad, h = hi[r] + pad;
             T lt = T(l), ht = T(h);
             if (double(lt) > l) lt = std::nextafter(lt, -tinf);
@@ -333,8 +333,8 @@ private:
             if (!std::isfinite(lt) || !std::isfinite(ht))
                 throw std::invalid_argument("dynbvh::TwoLevel::commit: the world box of instance " + std::to_string(i) +
                                             " overflows the scalar type");
-            out.min[std::size_t(r)] = lt;
-            out.max[std::size_t(r)] = ht;
+            out.min[r] = lt;
+            out.max[r] = ht;
         }
         return out;
     }
