@@ -16,10 +16,13 @@
 
 #include "backend.hpp"
 #include "camera.hpp"
+#include "results.hpp"
 
 namespace dynbvh::study {
 
-enum class Kind { lbvh, kbvh, ploc, binned_sah, refit, embree_low, embree_medium, embree_refit };
+enum class Kind { lbvh, kbvh, ploc, binned_sah, refit, embree_low, embree_medium, embree_refit,
+                  dynamic   ///< "auto": dynbvh::Dynamic (refit or rebuild per frame) over `over`
+};
 
 /// A builder and its knobs (defaults = the library's defaults = the thesis's settings).
 /// The wide tree the study traces by default: 8-wide when compiled with AVX (one AVX step tests a
@@ -42,10 +45,15 @@ struct BuilderSpec {
     bool precomputed = false;      ///< prim::copied instead of prim::indexed
     int wide = default_wide;       ///< trace a 4- or 8-wide tree converted from the binary one (wide.hpp; the
                                    ///< conversion is part of the timed build); wide=0: the binary traversal
+    Kind over = Kind::ploc;        ///< auto: the builder its rebuilds use (ploc or lbvh: "auto:lbvh")
+    double threshold = 1.3;        ///< auto: rebuild past this many times the last rebuild's SAH ("th=1.5")
+    bool async = false;            ///< auto: rebuild on a background thread, swap when ready ("async=1")
 
     bool is_embree() const noexcept { return kind == Kind::embree_low || kind == Kind::embree_medium || kind == Kind::embree_refit; }
     /// Keeps a tree from frame to frame (refit, embree-refit).
-    bool stateful() const noexcept { return kind == Kind::refit || kind == Kind::embree_refit; }
+    bool stateful() const noexcept { return kind == Kind::refit || kind == Kind::embree_refit || kind == Kind::dynamic; }
+    /// A strategy holding a tree across frames that reports a decision per frame (auto).
+    bool is_strategy() const noexcept { return kind == Kind::dynamic; }
     /// Canonical spec: the base name plus every knob that differs from the default ("ploc:r=16").
     std::string name() const;
     /// The base name ("ploc").
@@ -80,6 +88,8 @@ public:
     virtual std::optional<double> sah() const = 0;
     /// Bytes of the current tree; none for Embree.
     virtual std::optional<std::size_t> memory_bytes() const = 0;
+    /// What the last build() decided (refit, rebuild, swap and the SAHs); none for per-frame builders.
+    virtual std::optional<StrategyRecord> strategy() const { return std::nullopt; }
     /// Closest hit of one ray in the current structure (`tris` = the frame last built; the renderer's
     /// primary, reflection and refraction rays). Same tests as trace(). Throws std::logic_error when
     /// a structure does not implement single rays.

@@ -91,6 +91,7 @@ void run_frames(FrameSource& src, const BuilderSpec& spec, const Backend& backen
         r.trace_ms = std::chrono::duration<double, std::milli>(t3 - t2).count();
         r.sah = accel->sah();
         r.memory_bytes = accel->memory_bytes();
+        r.strategy = accel->strategy();
         r.hits = std::size_t(std::count_if(prims.begin(), prims.end(), [](std::uint32_t p) { return p != invalid_prim; }));
         if (effects) {
             const render::Stats st = render::render(AccelTracer{*accel, tris}, render::scene_view(f, src.scene()), gen, effects->image,
