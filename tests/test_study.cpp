@@ -306,6 +306,64 @@ TEST_CASE("study: auto (refit or rebuild) records its decisions, consistent with
     for (const char* b : {">lbvh</text>", ">refit</text>", ">auto</text>", ">auto:async=1</text>"}) CHECK_MESSAGE(plot.find(b) != std::string::npos, b);
 }
 
+TEST_CASE("study: two-level runs on scenes with objects, hits like a flat tree, and is skipped with a reason elsewhere") {
+    const auto out = tmp / "two_level";
+    std::filesystem::remove_all(out);
+    std::filesystem::create_directories(out);
+    {
+        std::ofstream ply(out / "one.ply");
+        ply << "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+               "element face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n";
+    }
+    const int rc = run_study("--scenes n-body,cloth-ball,\"" + (out / "one.ply").string() +
+                             "\" --scale 0.02 --frames 4 --builders ploc,two-level,two-level:lbvh --res 32x24 --images 0 "
+                             "--threads 2 --no-warmup --out \"" + out.string() + "\"",
+                             out / "log.txt");
+    INFO(read_all(out / "log.txt"));
+    REQUIRE(rc == 0);
+    const Json j = Json::parse(read_all(out / "study.json"));
+    CHECK(j.at("builders") == Json::array({"ploc", "two-level", "two-level:lbvh"}));
+    const auto group = [&](const std::string& scene, const std::string& b) -> const Json* {
+        for (const auto& g : j.at("results"))
+            if (g.at("scene") == scene && g.at("builder") == b) return &g;
+        return nullptr;
+    };
+    for (const char* scene : {"n-body", "cloth-ball"})
+        for (const char* b : {"two-level", "two-level:lbvh"}) {
+            INFO(scene << " " << b);
+            const Json* g = group(scene, b);
+            const Json* flat = group(scene, "ploc");
+            REQUIRE(g != nullptr);
+            REQUIRE(flat != nullptr);
+            REQUIRE(g->at("per_frame").size() == 4);
+            for (std::size_t k = 0; k < 4; ++k) {
+                const auto& f = g->at("per_frame").at(k);
+                CHECK(f.at("sah").is_null());
+                CHECK(f.at("memory_bytes").get<double>() > 0);
+                CHECK(f.at("triangles") == flat->at("per_frame").at(k).at("triangles"));
+                // Rigid objects are their first frame's triangles taken into object space and placed again:
+                // equal to the frame's triangles up to rounding, so the hit pixels agree but for a few on edges.
+                const double hits = f.at("hits").get<double>(), ref = flat->at("per_frame").at(k).at("hits").get<double>();
+                CHECK(hits > 0);
+                CHECK(std::abs(hits - ref) <= 0.01 * 32 * 24);
+            }
+        }
+    // The PLY has one object: two-level is skipped there, with the reason.
+    bool skipped = false;
+    for (const auto& sk : j.at("skipped"))
+        if (sk.at("builder") == "two-level" && sk.at("scene") == "one") {
+            skipped = true;
+            CHECK(sk.at("reason").get<std::string>().find("object") != std::string::npos);
+        }
+    CHECK(skipped);
+    CHECK(group("one", "two-level") == nullptr);
+    CHECK(group("one", "ploc") != nullptr);
+    const std::string report = read_all(out / "report.md");
+    CHECK(report.find("## Two-level") != std::string::npos);
+    CHECK(report.find("| n-body | two-level | 32x24 | 4 |") != std::string::npos);
+    CHECK(report.find("object space") != std::string::npos);
+}
+
 TEST_CASE("study: bad input fails with a message naming it") {
     const auto out = tmp / "bad";
     std::filesystem::create_directories(out);
@@ -317,6 +375,8 @@ TEST_CASE("study: bad input fails with a message naming it") {
     CHECK(read_all(out / "log5.txt").find("auto:octree") != std::string::npos);
     CHECK(run_study("--builders auto:th=-1 --out \"" + out.string() + "\"", out / "log6.txt") != 0);
     CHECK(read_all(out / "log6.txt").find("th must be") != std::string::npos);
+    CHECK(run_study("--builders two-level:wide=4 --out \"" + out.string() + "\"", out / "log8.txt") != 0);
+    CHECK(read_all(out / "log8.txt").find("wide") != std::string::npos);
     CHECK(run_study("--builders ploc:th=2 --out \"" + out.string() + "\"", out / "log7.txt") != 0);
     CHECK(read_all(out / "log7.txt").find("th") != std::string::npos);
     CHECK(run_study("--res 640by480", out / "log3.txt") == 2);

@@ -29,6 +29,7 @@ namespace dynbvh::study {
 /// was none), "sah_after" (the serving tree, = "sah"), "sah_rebuilt" (its SAH right after its build: a refit
 /// rebuilds when sah_before > threshold x the previous frame's sah_rebuilt), "rebuild_started" (async); per result
 /// "strategy": {"threshold", "refit", "rebuild", "swap"} (decision counts), null for per-frame builders.
+/// two-level: "sah" null (no one tree), "memory_bytes" = every object tree plus the top-level tree.
 std::string study_json(const StudyResults& r);
 
 /// One CSV row per measured frame (study and sweep): kind,scene,builder,group,width,height,rep,frame,

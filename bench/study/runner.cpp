@@ -74,6 +74,7 @@ void run_frames(FrameSource& src, const BuilderSpec& spec, const Backend& backen
     for (std::size_t k = 0; k < src.size(); ++k) {
         const io::Frame& f = src.get(k);
         const std::span<const Trianglef> tris(f.triangles);
+        accel->frame_objects(f.objects);
         accel->prepare(tris);
         const auto t0 = clock::now();
         accel->build(tris);
@@ -217,6 +218,15 @@ StudyResults run_study(const Options& opt, const Backend& backend) {
                     for (const auto& r : opt.resolutions)
                         progress.advance(double(opt.reps) * double(src.size()) * frame_weight(r.rays(), src.first_triangles()), sum.name);
                     continue;
+                }
+                if (b.kind == Kind::two_level && src.size() > 0) {
+                    if (const std::string why = two_level_unsupported(src.get(0)); !why.empty()) {
+                        res.skipped.push_back({sum.name, b.name(), why});
+                        progress.note("dynbvh-study: notice: " + sum.name + ": " + b.name() + " skipped (" + why + ")");
+                        for (const auto& r : opt.resolutions)
+                            progress.advance(double(opt.reps) * double(src.size()) * frame_weight(r.rays(), src.first_triangles()), sum.name);
+                        continue;
+                    }
                 }
                 run_specs.push_back(b);
             }
