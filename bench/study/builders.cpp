@@ -70,7 +70,7 @@ bool parse_dynamic_knob(BuilderSpec& b, const std::string& spec, const std::stri
         return true;
     }
     if (key == "r") {
-        if (b.over != Kind::ploc) throw std::invalid_argument("builder '" + spec + "': auto:lbvh has no knob 'r'");
+        if (b.over != Kind::ploc) throw std::invalid_argument("builder '" + spec + "': " + b.base() + ":lbvh has no knob 'r'");
         b.radius = knob_number<std::uint32_t>(spec, key, v);
         if (b.radius < 1 || b.radius > 65536) throw std::invalid_argument("builder '" + spec + "': r must be in 1..65536");
         return true;
