@@ -7,6 +7,7 @@
 
 
 #include "auto_accel.hpp"
+#include "embree_two_level.hpp"
 #include "dyn_accel.hpp"
 #include "options.hpp"
 
@@ -28,6 +29,7 @@ constexpr KindName kind_names[] = {
     {Kind::refit, "refit"},         {Kind::embree_low, "embree-low"},
     {Kind::embree_medium, "embree-medium"}, {Kind::embree_refit, "embree-refit"},
     {Kind::dynamic, "auto"},        {Kind::two_level, "two-level"},
+    {Kind::embree_two_level, "embree-two-level"},
 };
 
 std::string fmt_float(float v) {
@@ -268,6 +270,7 @@ private:
 } // namespace
 
 std::unique_ptr<Accel> make_accel(const BuilderSpec& spec, const Backend& backend) {
+    if (spec.kind == Kind::embree_two_level) return make_embree_two_level_accel(spec, backend);
     if (spec.is_embree()) {
 #if defined(DYNBVH_STUDY_EMBREE)
         return std::make_unique<EmbreeAccel>(spec, backend);

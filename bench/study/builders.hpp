@@ -22,7 +22,8 @@ namespace dynbvh::study {
 
 enum class Kind { lbvh, kbvh, ploc, binned_sah, refit, embree_low, embree_medium, embree_refit,
                   dynamic,  ///< "auto": dynbvh::Dynamic (refit or rebuild per frame) over `over`
-                  two_level ///< "two-level": dynbvh::TwoLevel over the frame's objects, `over` for every tree
+                  two_level, ///< "two-level": dynbvh::TwoLevel over the frame's objects, `over` for every tree
+                  embree_two_level ///< "embree-two-level": Embree 3 instancing over the frame's objects
 };
 
 /// A builder and its knobs (defaults = the library's defaults = the thesis's settings).
@@ -50,9 +51,10 @@ struct BuilderSpec {
     double threshold = 1.3;        ///< auto: rebuild past this many times the last rebuild's SAH ("th=1.5")
     bool async = false;            ///< auto: rebuild on a background thread, swap when ready ("async=1")
 
-    bool is_embree() const noexcept { return kind == Kind::embree_low || kind == Kind::embree_medium || kind == Kind::embree_refit; }
+    bool is_embree() const noexcept { return kind == Kind::embree_low || kind == Kind::embree_medium || kind == Kind::embree_refit || kind == Kind::embree_two_level; }
     /// Keeps a tree from frame to frame (refit, embree-refit).
-    bool stateful() const noexcept { return kind == Kind::refit || kind == Kind::embree_refit || kind == Kind::dynamic || kind == Kind::two_level; }
+    bool stateful() const noexcept { return kind == Kind::refit || kind == Kind::embree_refit || kind == Kind::dynamic || kind == Kind::two_level ||
+                                      kind == Kind::embree_two_level; }
     /// A strategy holding a tree across frames that reports a decision per frame (auto).
     bool is_strategy() const noexcept { return kind == Kind::dynamic; }
     /// Canonical spec: the base name plus every knob that differs from the default ("ploc:r=16").

@@ -61,6 +61,7 @@ Builders (--builders, comma separated; default: all available)
   two-level, two-level:lbvh (dynbvh::TwoLevel: one tree per object of the frame, built once for rigid
   objects and placed by their transforms, refitted or rebuilt for deforming ones (th=), a top-level tree
   rebuilt every frame; scenes whose frames expose no objects are skipped)
+  embree-two-level (Embree 3 instancing: one scene per object, an instance each, a top scene per frame)
   Knobs after a colon: ploc:r=16, kbvh:beta=0.2, lbvh:bits=63, ploc:leaf=4, binned-sah:bins=16,
   ploc:tri=mt (Moller-Trumbore instead of watertight), ploc:box=fast (plain slab test),
   ploc:prim=pre (leaf triangles copied into the tree), ploc:wide=4 / ploc:wide=8 (trace a 4- or 8-wide

@@ -466,7 +466,7 @@ Table strategy_table(const StudyResults& r) {
     return t;
 }
 
-bool is_two_level_name(const std::string& b) { return b.rfind("two-level", 0) == 0; }
+bool is_two_level_name(const std::string& b) { return b.rfind("two-level", 0) == 0 || b == "embree-two-level"; }
 
 /// Per scene x two-level variant x resolution: frame time beside the best per-frame rebuild (any builder
 /// that does not keep a tree across frames, ours or Embree's).

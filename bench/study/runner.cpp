@@ -219,7 +219,7 @@ StudyResults run_study(const Options& opt, const Backend& backend) {
                         progress.advance(double(opt.reps) * double(src.size()) * frame_weight(r.rays(), src.first_triangles()), sum.name);
                     continue;
                 }
-                if (b.kind == Kind::two_level && src.size() > 0) {
+                if ((b.kind == Kind::two_level || b.kind == Kind::embree_two_level) && src.size() > 0) {
                     if (const std::string why = two_level_unsupported(src.get(0)); !why.empty()) {
                         res.skipped.push_back({sum.name, b.name(), why});
                         progress.note("dynbvh-study: notice: " + sum.name + ": " + b.name() + " skipped (" + why + ")");
