@@ -365,6 +365,7 @@ TEST_CASE("study: two-level runs on scenes with objects, hits like a flat tree, 
     const std::string report = read_all(out / "report.md");
     CHECK(report.find("## Two-level") != std::string::npos);
     CHECK(report.find("| n-body | two-level | 32x24 | 4 |") != std::string::npos);
+    CHECK(report.find("vs embree-two-level") != std::string::npos);
     CHECK(report.find("object space") != std::string::npos);
 }
 
