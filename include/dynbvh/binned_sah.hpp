@@ -87,12 +87,12 @@ struct Binner {
     std::uint32_t k = 0;
 
     Binner(const AABB<T>& centroids, std::uint32_t bins) : origin(centroids.min), k(bins) {
-        for (int a = 0; a < 3; ++a) {
+        for (std::size_t a = 0; a < 3; ++a) {
             const double ext = double(centroids.max[a]) - double(centroids.min[a]);
             scale[a] = ext > 0 ? double(bins) / ext : 0;
         }
     }
-    std::uint32_t bin(const Vec3<T>& c, int a) const noexcept {
+    std::uint32_t bin(const Vec3<T>& c, std::size_t a) const noexcept {
         const double f = (double(c[a]) - double(origin[a])) * scale[a];
         if (!(f > 0)) return 0;
         return f >= double(k - 1) ? k - 1 : static_cast<std::uint32_t>(f);
@@ -103,8 +103,8 @@ template <class T>
 void bin_items(const Item<T>* items, std::size_t n, const Binner<T>& binner, Bins<T>& bins) noexcept {
     for (std::size_t i = 0; i < n; ++i) {
         const Vec3<T> c = items[i].box.center();
-        for (int a = 0; a < 3; ++a) {
-            const std::size_t b = std::size_t(a) * bins.k + binner.bin(c, a);
+        for (std::size_t a = 0; a < 3; ++a) {
+            const std::size_t b = a * bins.k + binner.bin(c, a);
             ++bins.count[b];
             bins.box[b].extend(items[i].box);
         }
@@ -133,7 +133,7 @@ Split best_split(const Bins<T>& bins, const AABB<T>& centroids, std::vector<doub
     right.resize(k);
     const Vec3<T> ext = centroids.diagonal();
     for (int a = 0; a < 3; ++a) {
-        if (!(ext[a] > T(0))) continue;
+        if (!(ext[std::size_t(a)] > T(0))) continue;
         const std::uint32_t* cnt = bins.count.data() + std::size_t(a) * k;
         const AABB<T>* box = bins.box.data() + std::size_t(a) * k;
         std::uint64_t total = 0;
@@ -173,7 +173,7 @@ std::size_t sweep_split(Item<T>* items, std::size_t n, const AABB<T>& centroids)
     double right[sweep_limit];
     double best_cost = std::numeric_limits<double>::infinity();
     std::size_t best_pos = 0;
-    for (int a = 0; a < 3; ++a) {
+    for (std::size_t a = 0; a < 3; ++a) {
         if (!(ext[a] > T(0))) continue;
         for (std::size_t i = 0; i < n; ++i) order[i] = static_cast<std::uint8_t>(i);
         std::sort(order, order + n, [&](std::uint8_t x, std::uint8_t y) {
@@ -209,7 +209,7 @@ template <class T>
 std::size_t median_split(Item<T>* items, std::size_t n, const AABB<T>& centroids) {
     const std::size_t mid = n / 2;
     const Vec3<T> ext = centroids.diagonal();
-    const int a = largest_axis(ext);
+    const std::size_t a = std::size_t(largest_axis(ext));
     if (ext[a] > T(0))
         std::nth_element(items, items + mid, items + n, [a](const Item<T>& x, const Item<T>& y) {
             return x.box.min[a] + x.box.max[a] < y.box.min[a] + y.box.max[a];
@@ -284,7 +284,7 @@ struct Worker {
                 const Split s = best_split(bins, cb, right);
                 if (s.axis < 0) return 0;
                 return static_cast<std::size_t>(
-                    std::partition(it, it + m, [&](const Item<T>& x) { return binner.bin(x.box.center(), s.axis) < s.bin; }) - it);
+                    std::partition(it, it + m, [&](const Item<T>& x) { return binner.bin(x.box.center(), std::size_t(s.axis)) < s.bin; }) - it);
             });
             stack.push_back(right_child);
             stack.push_back(left);
@@ -350,11 +350,11 @@ BinaryTree build_tree(const References<T>& refs, const Config& cfg, const Exec& 
             const Split s = best_split(part[0], cb, right);
             if (s.axis < 0) return 0;
             // Stable parallel partition: count per block, scan, scatter, copy back.
-            auto goes_left = [&](const Item<T>& x) { return binner.bin(x.box.center(), s.axis) < s.bin; };
+            auto goes_left = [&](const Item<T>& x) { return binner.bin(x.box.center(), std::size_t(s.axis)) < s.bin; };
             std::vector<std::size_t> left_count(blocks), left_at(blocks), right_at(blocks);
             ex.for_tasks(blocks, [&](std::size_t b) {
                 std::size_t c = 0;
-                for (std::size_t i = lo_of(b); i < hi_of(b); ++i) c += goes_left(it[i]) ? 1 : 0;
+                for (std::size_t i = lo_of(b); i < hi_of(b); ++i) c += goes_left(it[i]) ? 1u : 0u;
                 left_count[b] = c;
             });
             std::size_t lsum = 0, rsum = 0;

@@ -89,7 +89,7 @@ double ideal_area(const Polygon<T>& poly) noexcept {
 /// plane counts in the cell below it, so the planes strictly inside the box are the ones between
 /// `lo` and `hi`. Computed in double so that fine levels stay exact for float scenes.
 template <class T>
-void face_cells(const AABB<T>& box, const morton::Quantizer<T>& q, int a, std::uint64_t& lo, std::uint64_t& hi) noexcept {
+void face_cells(const AABB<T>& box, const morton::Quantizer<T>& q, std::size_t a, std::uint64_t& lo, std::uint64_t& hi) noexcept {
     const double top = static_cast<double>(q.cells) - 1.0;
     const double s = static_cast<double>(q.scale[a]), o = static_cast<double>(q.origin[a]);
     const double c0 = (static_cast<double>(box.min[a]) - o) * s, c1 = (static_cast<double>(box.max[a]) - o) * s;
@@ -109,7 +109,7 @@ void face_cells(const AABB<T>& box, const morton::Quantizer<T>& q, int a, std::u
 template <class T>
 int plane_rank(const AABB<T>& box, const morton::Quantizer<T>& q, int a, int& level, std::uint64_t& cell) noexcept {
     std::uint64_t lo, hi;
-    face_cells(box, q, a, lo, hi);
+    face_cells(box, q, std::size_t(a), lo, hi);
     const std::uint64_t d = lo ^ hi;
     if (d == 0) return -1;
     level = static_cast<int>(std::bit_width(d)) - 1;
@@ -133,14 +133,14 @@ template <class T>
 bool choose_plane(const AABB<T>& box, const morton::Quantizer<T>& q, int& axis, T& pos) noexcept {
     int best = -1, best_rank = -1;
     T best_pos{};
-    for (int a = 0; a < 3; ++a) {
+    for (std::size_t a = 0; a < 3; ++a) {
         int level = 0;
         std::uint64_t cell = 0;
-        const int rank = plane_rank(box, q, a, level, cell);
+        const int rank = plane_rank(box, q, int(a), level, cell);
         if (rank <= best_rank) continue;
         const T at = static_cast<T>(static_cast<double>(q.origin[a]) + static_cast<double>(cell) / static_cast<double>(q.scale[a]));
         if (!(box.min[a] < at && at < box.max[a])) continue;   // rounded onto a face
-        best = a;
+        best = int(a);
         best_rank = rank;
         best_pos = at;
     }
@@ -150,12 +150,12 @@ bool choose_plane(const AABB<T>& box, const morton::Quantizer<T>& q, int& axis, 
         return true;
     }
     const Vec3<T> d = box.diagonal();
-    int order[3] = {0, 1, 2};
-    std::sort(order, order + 3, [&](int x, int y) { return d[x] > d[y] || (d[x] == d[y] && x < y); });
-    for (int a : order) {
+    std::size_t order[3] = {0, 1, 2};
+    std::sort(order, order + 3, [&](std::size_t x, std::size_t y) { return d[x] > d[y] || (d[x] == d[y] && x < y); });
+    for (std::size_t a : order) {
         const T mid = box.min[a] + (box.max[a] - box.min[a]) * T(0.5);
         if (box.min[a] < mid && mid < box.max[a]) {
-            axis = a;
+            axis = int(a);
             pos = mid;
             return true;
         }
@@ -196,9 +196,9 @@ void initial_fragment(const Triangle<T>& tri, const AABB<T>& box, Polygon<T>& po
     if (!box.contains(tri.bounds())) {
         Polygon<T> lo, hi;
         for (int a = 0; a < 3; ++a) {
-            split_polygon(poly, a, box.min[a], lo, hi);
+            split_polygon(poly, a, box.min[std::size_t(a)], lo, hi);
             poly = hi;
-            split_polygon(poly, a, box.max[a], lo, hi);
+            split_polygon(poly, a, box.max[std::size_t(a)], lo, hi);
             poly = lo;
         }
     }
@@ -409,8 +409,8 @@ References<T> split(const References<T>& refs, std::span<const Triangle<T>> tris
                 Task lo, hi;
                 detail::split_polygon(t.poly, axis, pos, lo.poly, hi.poly);
                 AABB<T> lo_cut = t.box, hi_cut = t.box;
-                lo_cut.max[axis] = pos;
-                hi_cut.min[axis] = pos;
+                lo_cut.max[std::size_t(axis)] = pos;
+                hi_cut.min[std::size_t(axis)] = pos;
                 lo.box = intersection(detail::conservative_bounds(lo.poly), lo_cut);
                 hi.box = intersection(detail::conservative_bounds(hi.poly), hi_cut);
                 if (lo.poly.n == 0 || lo.poly.overflow || lo.box.is_empty()) lo.box = lo_cut;

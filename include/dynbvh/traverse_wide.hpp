@@ -208,7 +208,7 @@ bool wide_traverse_octant(const WideBvh<WN, P>& bvh, std::span<const Triangle<S>
     for (;;) {
         if (cur_count == 0) {
             const WN& n = nodes[cur];
-            alignas(32) S t[W];
+            alignas(32) S t[std::size_t(W)];
             unsigned mask = wb.template test<Oct>(n, tbox, t);
             if (mask != 0) {
                 const int a = std::countr_zero(mask);
@@ -231,7 +231,7 @@ bool wide_traverse_octant(const WideBvh<WN, P>& bvh, std::span<const Triangle<S>
                 }
                 // Three or more: sort by entry distance, push all but the nearest, farthest first.
                 if (sp + (W - 1) > cap) [[unlikely]] return false;
-                int order[W] = {a, b};
+                int order[std::size_t(W)] = {a, b};
                 int m = 2;
                 for (; mask != 0; mask &= mask - 1) order[m++] = std::countr_zero(mask);
                 for (int i = 1; i < m; ++i)

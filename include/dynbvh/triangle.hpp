@@ -55,13 +55,15 @@ std::vector<Triangle<T>> make_triangles(std::span<const Vec3<T>> vertices, std::
         throw std::invalid_argument("dynbvh::make_triangles: index count " + std::to_string(indices.size()) + " is not a multiple of 3");
     std::vector<Triangle<T>> out(indices.size() / 3);
     for (std::size_t t = 0; t < out.size(); ++t) {
-        for (int k = 0; k < 3; ++k) {
+        for (std::size_t k = 0; k < 3; ++k) {
             const auto i = static_cast<std::uint64_t>(indices[3 * t + k]);
             if (i >= vertices.size())
                 throw std::out_of_range("dynbvh::make_triangles: triangle " + std::to_string(t) + " uses vertex " +
                                         std::to_string(i) + " but there are " + std::to_string(vertices.size()));
         }
-        out[t] = {vertices[indices[3 * t]], vertices[indices[3 * t + 1]], vertices[indices[3 * t + 2]]};
+        // Checked above: each index is in [0, vertices.size()), also for a signed Index type.
+        out[t] = {vertices[static_cast<std::size_t>(indices[3 * t])], vertices[static_cast<std::size_t>(indices[3 * t + 1])],
+                  vertices[static_cast<std::size_t>(indices[3 * t + 2])]};
     }
     return out;
 }

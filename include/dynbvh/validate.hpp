@@ -95,7 +95,7 @@ ValidationReport validate(const Bvh<NodeT, Prim>& bvh, std::span<const Triangle<
 
     const std::size_t nt = tris.size();
     std::size_t non_finite = 0;
-    for (const auto& t : tris) non_finite += t.is_finite() ? 0 : 1;
+    for (const auto& t : tris) non_finite += t.is_finite() ? 0u : 1u;
     if (std::string msg = detail::triangle_mismatch(bvh, nt, "validate"); !msg.empty()) fail(msg);  // reported, not thrown
     if (bvh.excluded != non_finite)
         fail("excluded is " + std::to_string(bvh.excluded) + " but " + std::to_string(non_finite) +

@@ -58,14 +58,15 @@ struct alignas(64) WideNode {
     /// Children per node (4 or 8).
     static constexpr int width = W;
 
+    // Bounds std::size_t(W): an int bound warns under g++ -Wsign-conversion.
     /// @{
     /// Child boxes, structure of arrays: slot k is [lo_x[k], hi_x[k]] x [lo_y[k], hi_y[k]] x [lo_z[k], hi_z[k]].
-    Scalar lo_x[W], hi_x[W], lo_y[W], hi_y[W], lo_z[W], hi_z[W];
+    Scalar lo_x[std::size_t(W)], hi_x[std::size_t(W)], lo_y[std::size_t(W)], hi_y[std::size_t(W)], lo_z[std::size_t(W)], hi_z[std::size_t(W)];
     /// @}
     /// Slot k: the child node's index (inner child), or its first prim_ids slot (leaf).
-    Index child[W];
+    Index child[std::size_t(W)];
     /// Slot k: the leaf's reference count; 0 for an inner child or an empty slot.
-    Index count[W];
+    Index count[std::size_t(W)];
 
     /// Marks every slot empty.
     constexpr void clear() noexcept {
@@ -167,7 +168,7 @@ inline int open_wide(std::span<const NodeT> bin, typename NodeT::index_type b, t
 template <int W, class NodeT, class Inner>
 inline void fill_wide(std::span<const NodeT> bin, typename NodeT::index_type b,
                       WideNode<typename NodeT::scalar_type, typename NodeT::index_type, W>& w, Inner&& inner) {
-    typename NodeT::index_type c[W];
+    typename NodeT::index_type c[std::size_t(W)];
     const int n = open_wide<W>(bin, b, c);
     w.clear();
     for (int k = 0; k < n; ++k) {

@@ -252,7 +252,7 @@ struct Emitter {
             }
             AABB<T> box, centres;
             for (std::uint32_t k = r.begin; k < r.end; ++k) { box.extend(leaves[k].box); centres.extend(leaves[k].box.center()); }
-            const int axis = largest_axis(centres.diagonal());
+            const std::size_t axis = std::size_t(largest_axis(centres.diagonal()));
             const std::uint32_t mid = r.begin + (r.end - r.begin) / 2;
             std::nth_element(leaves.begin() + r.begin, leaves.begin() + mid, leaves.begin() + r.end,
                              [axis](const Leaf& a, const Leaf& b) { return a.box.center()[axis] < b.box.center()[axis]; });

@@ -92,11 +92,11 @@ struct Quantizer {
         if (bounds.is_empty()) return;
         origin = bounds.min;
         const Vec3<T> ext = bounds.diagonal();
-        for (int a = 0; a < 3; ++a)
+        for (std::size_t a = 0; a < 3; ++a)
             scale[a] = (ext[a] > T(0) && std::isfinite(ext[a])) ? cells / ext[a] : T(0);
     }
     /// Cell of p on axis a, clamped into [0, cells - 1] (NaN maps to 0). Branch-free.
-    std::uint64_t cell(const Vec3<T>& p, int a) const noexcept {
+    std::uint64_t cell(const Vec3<T>& p, std::size_t a) const noexcept {
         T c = (p[a] - origin[a]) * scale[a];
         c = c > T(0) ? c : T(0);                         // negative, zero or NaN -> 0
         c = c < cells - T(1) ? c : cells - T(1);

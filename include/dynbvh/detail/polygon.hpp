@@ -57,7 +57,7 @@ void split_polygon(const Polygon<T>& in, int axis, T pos, Polygon<T>& lo, Polygo
         if ((da < T(0) && db > T(0)) || (da > T(0) && db < T(0))) {
             const T t = da / (da - db);
             Vec3<T> p = a + (in[k1] - a) * t;
-            p[axis] = pos;
+            p[std::size_t(axis)] = pos;
             // Where the same crossing in long double differs, the exact one may lie outside the
             // corners' box: conservative_bounds() then widens that axis.
             const long double tl = (static_cast<long double>(in.coord(k, axis)) - pos) /

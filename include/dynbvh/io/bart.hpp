@@ -162,8 +162,8 @@ struct Affine {
     static Affine trs(const std::array<double, 3>& t, const Quaternion& r, const std::array<double, 3>& s) noexcept {
         const auto R = r.matrix();
         Affine a;
-        for (int row = 0; row < 3; ++row) {
-            for (int c = 0; c < 3; ++c) a.m[row * 4 + c] = R[row * 3 + c] * s[c];
+        for (std::size_t row = 0; row < 3; ++row) {
+            for (std::size_t c = 0; c < 3; ++c) a.m[row * 4 + c] = R[row * 3 + c] * s[c];
             a.m[row * 4 + 3] = t[row];
         }
         return a;
@@ -171,8 +171,8 @@ struct Affine {
     /// Composition: (a * b).apply(p) == a.apply(b.apply(p)) up to rounding.
     friend Affine operator*(const Affine& a, const Affine& b) noexcept {
         Affine r;
-        for (int row = 0; row < 3; ++row)
-            for (int c = 0; c < 4; ++c) {
+        for (std::size_t row = 0; row < 3; ++row)
+            for (std::size_t c = 0; c < 4; ++c) {
                 double s = a.m[row * 4 + 0] * b.m[0 * 4 + c] + a.m[row * 4 + 1] * b.m[1 * 4 + c] + a.m[row * 4 + 2] * b.m[2 * 4 + c];
                 if (c == 3) s += a.m[row * 4 + 3];
                 r.m[row * 4 + c] = s;
@@ -187,8 +187,8 @@ struct Affine {
     /// The same transform as a column-major io::Transform.
     Transform to_transform() const noexcept {
         Transform t;
-        for (int row = 0; row < 3; ++row)
-            for (int c = 0; c < 4; ++c) t.m[c * 4 + row] = float(m[row * 4 + c]);
+        for (std::size_t row = 0; row < 3; ++row)
+            for (std::size_t c = 0; c < 4; ++c) t.m[c * 4 + row] = float(m[row * 4 + c]);
         t.m[3] = t.m[7] = t.m[11] = 0;
         t.m[15] = 1;
         return t;
@@ -792,7 +792,7 @@ private:
         }
         expect("triangles", "in mesh (after vertices [normals] [texturecoords])");
         const bool has_t = nt > 0;
-        const std::size_t per = 3 + (nn > 0 ? 3 : 0) + (has_t ? 3 : 0);
+        const std::size_t per = 3u + (nn > 0 ? 3u : 0u) + (has_t ? 3u : 0u);
         const std::size_t ntri = count("mesh triangles", per);
         Builder& b = new_builder(object_name(":" + std::to_string(line)), false);
         b.tris.reserve(ntri);

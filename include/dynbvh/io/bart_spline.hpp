@@ -176,7 +176,7 @@ public:
             const VectorKey &k0 = keys[i], &k1 = keys[i + 1], &k2 = keys[i + 2], &k3 = keys[i + 3];
             const auto w = detail::tcb_weights(k0, k1, k2, k3);
             Cubic c;
-            for (int a = 0; a < 3; ++a) {
+            for (std::size_t a = 0; a < 3; ++a) {
                 const double d = k2.value[a] - k1.value[a];
                 const double tout = w.out_next * d + w.out_prev * (k1.value[a] - k0.value[a]);
                 const double tin = w.in_next * (k3.value[a] - k2.value[a]) + w.in_prev * d;
@@ -199,7 +199,7 @@ public:
         if (!detail::locate(tmin_, tmax_, reach_, t, i, u, at_end)) return at_end ? last_ : first_;
         const Cubic& c = polys_[i];
         std::array<double, 3> r;
-        for (int a = 0; a < 3; ++a) r[a] = c.c0[a] + u * (c.c1[a] + u * (c.c2[a] + u * c.c3[a]));
+        for (std::size_t a = 0; a < 3; ++a) r[a] = c.c0[a] + u * (c.c1[a] + u * (c.c2[a] + u * c.c3[a]));
         return r;
     }
 

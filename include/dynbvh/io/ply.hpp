@@ -371,7 +371,11 @@ inline bool finite_bits(float f) noexcept { return (std::bit_cast<std::uint32_t>
 /// Index of the first vertex with a non-finite coordinate, or n.
 inline std::size_t first_non_finite(const Vec3f* v, std::size_t n) noexcept {
     bool ok = true;
-    for (std::size_t i = 0; i < n; ++i) ok &= finite_bits(v[i].x) & finite_bits(v[i].y) & finite_bits(v[i].z);
+    for (std::size_t i = 0; i < n; ++i) {   // branch-free (&=, not &&), so the loop vectorises
+        ok &= finite_bits(v[i].x);
+        ok &= finite_bits(v[i].y);
+        ok &= finite_bits(v[i].z);
+    }
     if (ok) return n;
     for (std::size_t i = 0; i < n; ++i)
         if (!(finite_bits(v[i].x) && finite_bits(v[i].y) && finite_bits(v[i].z))) return i;

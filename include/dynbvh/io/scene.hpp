@@ -104,10 +104,10 @@ struct Transform {
     /// Composition: (a * b) applies b first, then a.
     friend Transform operator*(const Transform& a, const Transform& b) noexcept {
         Transform r;
-        for (int c = 0; c < 4; ++c)
-            for (int rr = 0; rr < 4; ++rr) {
+        for (std::size_t c = 0; c < 4; ++c)
+            for (std::size_t rr = 0; rr < 4; ++rr) {
                 float s = 0;
-                for (int k = 0; k < 4; ++k) s += a.m[k * 4 + rr] * b.m[c * 4 + k];
+                for (std::size_t k = 0; k < 4; ++k) s += a.m[k * 4 + rr] * b.m[c * 4 + k];
                 r.m[c * 4 + rr] = s;
             }
         return r;

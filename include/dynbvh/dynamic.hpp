@@ -1,0 +1,306 @@
+// SPDX-License-Identifier: MIT
+/// @file dynamic.hpp
+/// A refit-or-rebuild policy holding one tree across the frames of an animation:
+/// @code
+///   dynbvh::Dynamic<> scene;                       // PLOC, rebuild past 1.3x the last rebuild's SAH
+///   for (frame...) {
+///       const auto report = scene.update(tris);    // refit, rebuild or swap; report.decision says which
+///       auto hit = dynbvh::intersect(scene.bvh(), tris, ray);
+///   }
+/// @endcode
+/// Each frame the tree is refitted (refit.hpp) and its SAH (sah.hpp) compared with the SAH the tree
+/// had right after its last rebuild; past `rebuild_threshold` times that, the tree is rebuilt. A
+/// changed triangle count (topology), or a changed set of non-finite triangles (the builders leave
+/// those out, and refit cannot add them back), rebuilds at once.
+///
+/// Asynchronous rebuild (Ize, Wald, Parker 2007, "Asynchronous BVH Construction for Ray Tracing
+/// Dynamic Scenes on Parallel Multi-Core Architectures"): with `async`, a rebuild runs on a background
+/// std::thread over a copy of the frame's triangles while the refitted old tree serves the following
+/// frames; the first update() after it finished takes the new tree, refits it to that frame and swaps
+/// it in. At most one rebuild runs at a time.
+/// Synchronisation: the background thread touches only what it owns (the triangle copy, copies of the
+/// builder's config and of the executor) and a result slot guarded by a mutex; the tree it built is
+/// taken after joining the thread. The scratch cache the builders allocate from is mutex-guarded
+/// (detail/scratch.hpp). One Dynamic is used by one thread at a time (update() and the accessors are
+/// not synchronised with each other).
+#pragma once
+
+#include <chrono>
+#include <cmath>
+#include <cstddef>
+#include <cstdint>
+#include <exception>
+#include <limits>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <span>
+#include <stdexcept>
+#include <string>
+#include <thread>
+#include <utility>
+#include <vector>
+
+#include "builder.hpp"
+#include "bvh.hpp"
+#include "cost.hpp"
+#include "executor.hpp"
+#include "refit.hpp"
+#include "sah.hpp"
+
+namespace dynbvh {
+
+/// What update() did with the tree this frame.
+enum class Decision : std::uint8_t {
+    refit,    ///< the tree was refitted and serves the frame
+    rebuild,  ///< a new tree was built over this frame's triangles (synchronously)
+    swap,     ///< a background rebuild finished; its tree, refitted to this frame, replaced the old one
+};
+/// Why update() decided so.
+enum class Reason : std::uint8_t {
+    none,          ///< refit: the refitted SAH is within the threshold (or a rebuild is already running)
+    first_frame,   ///< no tree yet
+    topology,      ///< the triangle count changed
+    finiteness,    ///< the set of triangles with a NaN or infinite vertex changed
+    sah_growth,    ///< the refitted SAH exceeded rebuild_threshold times the last rebuild's
+    rebuild_ready, ///< swap: the background rebuild finished
+};
+
+/// One frame's decision. SAHs are sah_cost values (sah.hpp, the policy's `cost`).
+struct FrameReport {
+    Decision decision = Decision::refit;   ///< what was done
+    Reason reason = Reason::none;          ///< why
+    /// SAH of the previous frame's tree refitted to this frame (refit and rebuild on SAH growth); for a
+    /// swap the SAH the replaced tree had at the previous frame; NaN when there was no tree to refit
+    /// (first frame, topology or finiteness change).
+    double sah_before = std::numeric_limits<double>::quiet_NaN();
+    /// SAH of the tree that serves this frame.
+    double sah_after = 0;
+    /// SAH the serving tree had right after its (last) build: what the threshold multiplies.
+    double sah_rebuilt = 0;
+    /// Wall-clock time of update() in milliseconds (the background rebuild's time is not included).
+    double ms = 0;
+    /// Async only: a background rebuild was started this frame (over this frame's triangles).
+    bool rebuild_started = false;
+    /// Frame number, 0 for the first update().
+    std::size_t frame = 0;
+};
+
+/// Knobs of Dynamic. Designated-initialiser friendly: `{.rebuild_threshold = 1.5, .async = true}`.
+template <class BuilderConfig>
+struct DynamicConfig {
+    /// Rebuild when the refitted tree's SAH exceeds this many times the SAH right after the last rebuild.
+    /// 0 rebuilds every frame, +inf never rebuilds for SAH growth (always refit). Default 1.3.
+    /// NaN or negative values are rejected (std::invalid_argument).
+    double rebuild_threshold = 1.3;
+    /// Rebuild on a background thread while refitted trees serve the frames (Ize et al. 2007). Default off.
+    bool async = false;
+    /// The builder's own knobs.
+    BuilderConfig builder{};
+    /// Ct and Ci of the SAH that the rule compares.
+    SahCost cost{};
+};
+
+/// Refit-or-rebuild policy over one triangle array that changes from frame to frame (see the file
+/// comment). update() costs a refit plus an SAH evaluation (O(nodes)), plus a build when it rebuilds
+/// synchronously; async adds a copy of the triangles when a rebuild starts.
+/// @tparam Builder builder policy (builder.hpp): builder::ploc (default), builder::lbvh, builder::binned_sah
+/// @tparam NodeT, Prim the tree's node layout and primitive policy (bvh.hpp)
+/// @tparam Exec threading backend (executor.hpp), also used by the background rebuild
+template <class Builder = builder::ploc, class NodeT = Node<>, class Prim = prim::indexed,
+          class Exec = exec::default_executor>
+class Dynamic {
+public:
+    using scalar_type = typename NodeT::scalar_type;              ///< the tree's scalar (float by default)
+    using triangle_type = Triangle<scalar_type>;                  ///< the input triangle
+    using bvh_type = Bvh<NodeT, Prim>;                            ///< the tree held across frames
+    using config_type = DynamicConfig<typename Builder::config>;  ///< the policy's knobs
+
+    /// A policy with no tree yet (the first update() builds). Throws std::invalid_argument when
+    /// cfg.rebuild_threshold is NaN or negative.
+    explicit Dynamic(const config_type& cfg = {}, const Exec& ex = {}) : cfg_(cfg), ex_(ex) {
+        if (!(cfg.rebuild_threshold >= 0))
+            throw std::invalid_argument("dynbvh::Dynamic: cfg.rebuild_threshold is " + std::to_string(cfg.rebuild_threshold) +
+                                        "; it must be >= 0 (0 rebuilds every frame, +inf never)");
+    }
+    /// Takes over `o`'s tree and its running background rebuild, if any.
+    Dynamic(Dynamic&&) noexcept = default;
+    /// Waits for this policy's own background rebuild, then takes over `o`'s state.
+    Dynamic& operator=(Dynamic&& o) noexcept {
+        if (this != &o) {
+            drop_background();
+            tree_ = std::move(o.tree_);
+            cfg_ = std::move(o.cfg_);
+            ex_ = std::move(o.ex_);
+            built_ = o.built_;
+            sah_ = o.sah_;
+            sah_rebuilt_ = o.sah_rebuilt_;
+            excluded_ids_ = std::move(o.excluded_ids_);
+            frame_ = o.frame_;
+            job_ = std::move(o.job_);
+        }
+        return *this;
+    }
+    Dynamic(const Dynamic&) = delete;
+    Dynamic& operator=(const Dynamic&) = delete;
+    /// Waits for a background rebuild still running (its result is dropped).
+    ~Dynamic() { drop_background(); }
+
+    /// Brings the tree to this frame's triangles `tris` (any count; the array the caller traces with
+    /// until the next update(), for prim::indexed) and says how. `tris` is not modified nor kept.
+    FrameReport update(std::span<const triangle_type> tris) {
+        const auto start = std::chrono::steady_clock::now();
+        FrameReport r;
+        r.frame = frame_++;
+        std::vector<std::uint32_t> bad = nonfinite_ids(tris);
+        if (!built_ || tris.size() != tree_.primitive_count || bad != excluded_ids_) {
+            r.reason = !built_ ? Reason::first_frame : tris.size() != tree_.primitive_count ? Reason::topology
+                                                                                              : Reason::finiteness;
+            drop_background();
+            rebuild_now(tris, std::move(bad));
+            r.decision = Decision::rebuild;
+        } else if (std::optional<Job> job = take_finished(); job && job->excluded_ids == excluded_ids_) {
+            // Step: swap in the background tree, refitted to this frame.
+            r.sah_before = sah_;
+            tree_ = std::move(job->tree);
+            refit(tree_, tris, ex_);
+            sah_rebuilt_ = job->sah;
+            sah_ = sah_cost(tree_, cfg_.cost, ex_);
+            r.decision = Decision::swap;
+            r.reason = Reason::rebuild_ready;
+            if (grown()) start_background(tris, r);
+        } else {
+            // Step: refit, then apply the rule.
+            refit(tree_, tris, ex_);
+            sah_ = sah_cost(tree_, cfg_.cost, ex_);
+            r.sah_before = sah_;
+            if (grown()) {
+                r.reason = Reason::sah_growth;
+                if (cfg_.async) {
+                    if (!job_) start_background(tris, r);
+                    else r.reason = Reason::none;   // one is running already: keep refitting
+                } else {
+                    rebuild_now(tris, std::move(bad));
+                    r.decision = Decision::rebuild;
+                }
+            }
+        }
+        r.sah_after = sah_;
+        r.sah_rebuilt = sah_rebuilt_;
+        r.ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+        return r;
+    }
+
+    /// The tree serving the current frame (empty before the first update()).
+    const bvh_type& bvh() const noexcept { return tree_; }
+    /// SAH of the current tree at the current frame.
+    double sah() const noexcept { return sah_; }
+    /// SAH the current tree had right after its build (what rebuild_threshold multiplies).
+    double rebuild_sah() const noexcept { return sah_rebuilt_; }
+    /// Whether a background rebuild is running or finished but not yet swapped in.
+    bool rebuild_pending() const noexcept { return job_ != nullptr; }
+    /// Blocks until the background rebuild (if any) has finished; the next update() swaps it in.
+    void wait_for_rebuild() {
+        if (job_ && job_->thread.joinable()) job_->thread.join();
+    }
+    /// The policy's knobs.
+    const config_type& config() const noexcept { return cfg_; }
+    /// Number of update() calls so far.
+    std::size_t frames() const noexcept { return frame_; }
+
+private:
+    struct Job {
+        bvh_type tree;
+        double sah = 0;
+        std::vector<std::uint32_t> excluded_ids;
+    };
+    /// A background rebuild: its thread and its result slot (heap-allocated, so the policy may move).
+    struct Background {
+        std::thread thread;
+        std::mutex mutex;
+        bool done = false;                // guarded by mutex
+        std::optional<Job> result;        // guarded by mutex
+        std::exception_ptr error;         // guarded by mutex
+    };
+
+    bool grown() const noexcept { return sah_ > cfg_.rebuild_threshold * sah_rebuilt_; }
+
+    /// Indices of the triangles with a NaN or infinite vertex, ascending (the builders exclude them).
+    std::vector<std::uint32_t> nonfinite_ids(std::span<const triangle_type> tris) const {
+        const std::size_t count = ex_.reduce(std::size_t(0), tris.size(), std::size_t(0),
+                                             [&](std::size_t i) { return tris[i].is_finite() ? std::size_t(0) : std::size_t(1); },
+                                             [](std::size_t a, std::size_t b) { return a + b; });
+        std::vector<std::uint32_t> ids;
+        if (count == 0) return ids;
+        ids.reserve(count);
+        for (std::size_t i = 0; i < tris.size(); ++i)
+            if (!tris[i].is_finite()) ids.push_back(static_cast<std::uint32_t>(i));
+        return ids;
+    }
+
+    void rebuild_now(std::span<const triangle_type> tris, std::vector<std::uint32_t> bad) {
+        tree_ = Builder::template build<NodeT, Prim>(tris, cfg_.builder, ex_);
+        sah_ = sah_rebuilt_ = sah_cost(tree_, cfg_.cost, ex_);
+        excluded_ids_ = std::move(bad);
+        built_ = true;
+    }
+
+    /// Starts the background rebuild over a copy of `tris`.
+    void start_background(std::span<const triangle_type> tris, FrameReport& r) {
+        auto bg = std::make_unique<Background>();
+        Background* slot = bg.get();
+        std::vector<triangle_type> copy(tris.begin(), tris.end());
+        std::vector<std::uint32_t> bad = excluded_ids_;
+        bg->thread = std::thread([slot, copy = std::move(copy), bad = std::move(bad), cfg = cfg_, ex = ex_]() mutable {
+            std::optional<Job> job;
+            std::exception_ptr error;
+            try {
+                job.emplace();
+                job->tree = Builder::template build<NodeT, Prim>(std::span<const triangle_type>(copy), cfg.builder, ex);
+                job->sah = sah_cost(job->tree, cfg.cost, ex);
+                job->excluded_ids = std::move(bad);
+            } catch (...) {
+                error = std::current_exception();
+                job.reset();
+            }
+            std::lock_guard lock(slot->mutex);
+            slot->result = std::move(job);
+            slot->error = error;
+            slot->done = true;
+        });
+        job_ = std::move(bg);
+        r.rebuild_started = true;
+    }
+
+    /// The finished background rebuild, if there is one (its thread joined); rethrows its exception.
+    std::optional<Job> take_finished() {
+        if (!job_) return std::nullopt;
+        {
+            std::lock_guard lock(job_->mutex);
+            if (!job_->done) return std::nullopt;
+        }
+        if (job_->thread.joinable()) job_->thread.join();   // wait_for_rebuild() may have joined it
+        std::unique_ptr<Background> bg = std::move(job_);
+        if (bg->error) std::rethrow_exception(bg->error);
+        return std::move(bg->result);
+    }
+
+    /// Waits for a running background rebuild and forgets it.
+    void drop_background() noexcept {
+        if (!job_) return;
+        if (job_->thread.joinable()) job_->thread.join();
+        job_.reset();
+    }
+
+    bvh_type tree_;
+    config_type cfg_;
+    Exec ex_;
+    bool built_ = false;
+    double sah_ = 0;            // current tree, current frame
+    double sah_rebuilt_ = 0;    // current tree right after its build
+    std::vector<std::uint32_t> excluded_ids_;   // non-finite triangles of the current tree's build
+    std::size_t frame_ = 0;
+    std::unique_ptr<Background> job_;
+};
+
+} // namespace dynbvh

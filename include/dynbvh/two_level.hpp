@@ -1,0 +1,466 @@
+// SPDX-License-Identifier: MIT
+/// @file two_level.hpp
+/// Two-level scenes: objects, each with its own tree, placed by instances (an object and an affine
+/// transform each), under a top-level tree over the instances' world boxes.
+/// @code
+///   dynbvh::TwoLevel<> scene;                           // PLOC for the objects and the top level
+///   const auto ball = scene.add_object(ball_tris);      // built once
+///   scene.set_instances(instances);                     // {object, transform} per instance
+///   scene.commit();                                     // world boxes + top-level rebuild
+///   for (frame...) {
+///       scene.set_transforms(transforms);               // rigid motion: no object tree is touched
+///       scene.update_object(cloth, cloth_tris);         // a deformed object: refit or rebuild (dynamic.hpp)
+///       scene.commit();
+///       auto hit = scene.intersect(ray);                // hit.instance, hit.prim (the object's triangle), t
+///   }
+/// @endcode
+/// Objects: each is a Dynamic policy (dynamic.hpp) over the user's triangle array for that object, so
+/// a rigid object's tree is built once and reused, and a deformed one is refitted or rebuilt by the
+/// policy's SAH rule. The scene keeps a span of each object's triangles (the user keeps the array
+/// alive and unchanged until the next update_object), like every prim::indexed tree.
+///
+/// Top level: rebuilt by commit() with the same builder policy, over one reference per instance whose
+/// box is the instance's (padded, see below) world box: the builders' `build_tree` over prepared
+/// references and the shared emission (detail/emit.hpp), the same code path every builder ends with.
+/// Feeding the builders degenerate triangles instead would break under presplitting (fragments would
+/// be clipped smaller than the box) and waste the triangle reading; the reference path is the builders'
+/// own input format, so no new tree code was needed. Default top leaves hold one instance (a leaf
+/// test is a whole object traversal, far dearer than a box test).
+///
+/// Traversal: the top-level tree is walked near-first in double; at a leaf each instance's ray is
+/// `object_ray(inverse, ray)` (affine.hpp: origin and direction by the inverse transform, same t) and
+/// the object's own traversal (traverse.hpp) runs with the closest t found so far as tmax. A hit
+/// reports t (the same parameter in world and object space), u, v, the object's triangle (`prim`) and
+/// the instance (`instance`).
+///
+/// Exactness contract: `intersect` returns what `brute_force_intersect` returns, which tests every
+/// instance in order with the same object ray (object_ray) and the watertight triangle test against
+/// every triangle of its object: the same t to the bit, and the same (instance, triangle) or another
+/// one hit at exactly that t. Inside each object this is the object traversal's own contract
+/// (watertight, traverse.hpp). For the top level to never cull an instance brute force hits, each
+/// world box is padded and the ray's reach widened to cover the rounding of the transformation: with
+/// u the unit roundoff of T, k = 256 u, kappa = ||L|| ||L^-1|| (infinity norms), B the largest
+/// coordinate and D the largest extent of the exact world box, c the inverse's translation:
+///   padding  p = k (||L|| (||L^-1|| B + |c|) + kappa D + B)   (absolute, per instance),
+///   reach    the ray at parameter t may pass up to alpha |t| |dir| beside a box, alpha = k (kappa + 1).
+/// These bound the object ray's rounding (fma chains, an inverse rounded from double) mapped back to
+/// world space, with a wide safety factor (the derivation gives about 8 u). The triangle test's own t
+/// error on grazing hits is not covered by a proof; tests/test_instances.cpp checks the contract
+/// empirically (rotations, mirrors, scales, translations far from the origin), as for traverse.hpp.
+/// Costs: commit() O(instances) plus a top-level build; a ray visits O(log instances) top nodes plus
+/// the object traversals of the instances it reaches.
+#pragma once
+
+#include <algorithm>
+#include <cmath>
+#include <cstddef>
+#include <cstdint>
+#include <limits>
+#include <span>
+#include <stdexcept>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "affine.hpp"
+#include "builder.hpp"
+#include "bvh.hpp"
+#include "detail/emit.hpp"
+#include "detail/references.hpp"
+#include "dynamic.hpp"
+#include "executor.hpp"
+#include "traverse.hpp"
+
+namespace dynbvh {
+
+/// One placement of an object: world = transform(object space).
+template <class T>
+struct Instance {
+    std::uint32_t object = 0;   ///< id returned by TwoLevel::add_object
+    Affine<T> transform{};      ///< object-to-world transform
+};
+
+/// Closest hit in a two-level scene: the object traversal's Hit (t, u, v, prim = the object's triangle)
+/// and the instance it belongs to (`invalid_prim` when nothing is hit).
+template <class T>
+struct InstanceHit : Hit<T> {
+    std::uint32_t instance = invalid_prim;   ///< index of the instance hit (into TwoLevel::instances())
+};
+
+namespace detail {
+/// A builder config whose leaf collapse keeps one instance per leaf.
+template <class BuilderConfig>
+BuilderConfig one_instance_per_leaf() {
+    BuilderConfig c{};
+    c.leaves.max_leaf_size = 1;
+    return c;
+}
+} // namespace detail
+
+/// Knobs of TwoLevel.
+template <class Builder>
+struct TwoLevelConfig {
+    /// Each object's refit-or-rebuild policy (default: PLOC-style builder defaults, rebuild past 1.3x SAH).
+    DynamicConfig<typename Builder::config> objects{};
+    /// The top-level build's knobs (default: the builder's defaults with one instance per leaf).
+    typename Builder::config top = detail::one_instance_per_leaf<typename Builder::config>();
+};
+
+/// A two-level scene (see the file comment).
+/// @tparam Builder builder policy for the objects and the top level (builder.hpp), default builder::ploc
+/// @tparam NodeT, Prim the object trees' node layout and primitive policy; the top level uses NodeT
+/// @tparam Exec threading backend for every build
+template <class Builder = builder::ploc, class NodeT = Node<>, class Prim = prim::indexed,
+          class Exec = exec::default_executor>
+class TwoLevel {
+public:
+    using scalar_type = typename NodeT::scalar_type;              ///< the trees' scalar (float by default)
+    using triangle_type = Triangle<scalar_type>;                  ///< an object's triangle
+    using object_policy = Dynamic<Builder, NodeT, Prim, Exec>;    ///< each object's refit-or-rebuild policy
+    using object_bvh_type = Bvh<NodeT, Prim>;                     ///< an object's tree
+    using top_bvh_type = Bvh<NodeT, prim::indexed>;   ///< its prim_ids are instance indices
+    using config_type = TwoLevelConfig<Builder>;                  ///< the scene's knobs
+
+    /// An empty scene. Throws std::invalid_argument for a bad cfg.objects (see DynamicConfig).
+    explicit TwoLevel(const config_type& cfg = {}, const Exec& ex = {}) : cfg_(cfg), ex_(ex) {
+        object_policy probe(cfg_.objects, ex_);   // validates the object policy's knobs
+    }
+
+    /// Adds an object over the user's triangles `tris` (kept as a span, see the file comment) and builds
+    /// its tree. Returns its id (0, 1, ...). O(build).
+    std::uint32_t add_object(std::span<const triangle_type> tris) {
+        if (objects_.size() >= std::size_t(invalid_prim))
+            throw std::length_error("dynbvh::TwoLevel::add_object: too many objects");
+        Object o{object_policy(cfg_.objects, ex_), tris};
+        o.policy.update(tris);
+        objects_.push_back(std::move(o));
+        dirty_ = true;
+        return static_cast<std::uint32_t>(objects_.size() - 1);
+    }
+
+    /// Object `object` deformed: its triangles are now `tris` (any count; a new count rebuilds). The
+    /// object's policy refits or rebuilds (dynamic.hpp) and says which. Call commit() before tracing.
+    /// Throws std::invalid_argument when `object` is not an object id.
+    FrameReport update_object(std::uint32_t object, std::span<const triangle_type> tris) {
+        check_object(object, "update_object", "object");
+        Object& o = objects_[object];
+        FrameReport r = o.policy.update(tris);
+        o.tris = tris;
+        dirty_ = true;
+        return r;
+    }
+
+    /// Replaces the instances. Each must name an object (instances[i].object < object_count()) and have
+    /// a finite, invertible transform (see dynbvh::inverse); otherwise std::invalid_argument naming
+    /// instances[i] and the scene is unchanged. Inverses are computed here (in double). O(instances).
+    void set_instances(std::span<const Instance<scalar_type>> instances) {
+        std::vector<Affine<scalar_type>> inv(instances.size());
+        for (std::size_t i = 0; i < instances.size(); ++i) {
+            const std::string name = "instances[" + std::to_string(i) + "]";
+            if (instances[i].object >= objects_.size())
+                throw std::invalid_argument("dynbvh::TwoLevel::set_instances: " + name + ".object is " +
+                                            std::to_string(instances[i].object) + " but the scene has " +
+                                            std::to_string(objects_.size()) + " objects");
+            inv[i] = inverse(instances[i].transform, name + ".transform");
+        }
+        instances_.assign(instances.begin(), instances.end());
+        inverses_ = std::move(inv);
+        dirty_ = true;
+    }
+
+    /// Rigid motion: new transforms for the same instances (transforms[i] for instance i). No object
+    /// tree is touched. Throws std::invalid_argument when the count differs from instance_count() or a
+    /// transform is not invertible (scene unchanged). O(instances).
+    void set_transforms(std::span<const Affine<scalar_type>> transforms) {
+        if (transforms.size() != instances_.size())
+            throw std::invalid_argument("dynbvh::TwoLevel::set_transforms: transforms has " + std::to_string(transforms.size()) +
+                                        " entries but the scene has " + std::to_string(instances_.size()) + " instances");
+        std::vector<Affine<scalar_type>> inv(transforms.size());
+        for (std::size_t i = 0; i < transforms.size(); ++i) inv[i] = inverse(transforms[i], "transforms[" + std::to_string(i) + "]");
+        for (std::size_t i = 0; i < transforms.size(); ++i) instances_[i].transform = transforms[i];
+        inverses_ = std::move(inv);
+        dirty_ = true;
+    }
+
+    /// Computes every instance's padded world box and rebuilds the top-level tree. Instances of empty
+    /// objects get no box (nothing to hit). Throws std::invalid_argument when a world box overflows T.
+    /// O(instances) plus the top-level build.
+    void commit() {
+        using T = scalar_type;
+        const std::size_t n = instances_.size();
+        References<T> refs;
+        refs.primitive_count = n;
+        refs.box.resize(n);
+        refs.prim.resize(n);
+        double alpha = 0;
+        std::size_t live = 0;
+        for (std::size_t i = 0; i < n; ++i) {
+            const object_bvh_type& ob = objects_[instances_[i].object].policy.bvh();
+            if (ob.empty()) continue;
+            double a = 0;
+            refs.box[live] = world_box(ob.bounds(), instances_[i].transform, inverses_[i], a, i);
+            refs.prim[live++] = static_cast<std::uint32_t>(i);
+            alpha = std::max(alpha, a);
+        }
+        refs.box.resize(live);
+        refs.prim.resize(live);
+        refs.excluded = n - live;
+        update_reference_bounds(refs, ex_);
+        const BinaryTree tree = Builder::build_tree(refs, cfg_.top, ex_);
+        // No triangles: the top level is prim::indexed over instance ids, and emission reads none.
+        top_ = emit_bvh<NodeT, prim::indexed>(tree, refs, std::span<const triangle_type>(), cfg_.top.leaves, ex_);
+        alpha_ = alpha;
+        dirty_ = false;
+    }
+
+    /// Closest hit of the world ray `ray` (see the file comment); no hit for rays that are not
+    /// `traceable`. Throws std::logic_error when the scene changed since the last commit().
+    template <class Policy = trace::robust>
+    InstanceHit<scalar_type> intersect(const Ray<scalar_type>& ray) const {
+        return trace<Policy, false>(ray, "intersect");
+    }
+    /// Whether anything blocks `ray` within [tmin, tmax] (stops at the first hit). Throws
+    /// std::logic_error when the scene changed since the last commit().
+    template <class Policy = trace::robust>
+    bool occluded(const Ray<scalar_type>& ray) const {
+        return bool(trace<Policy, true>(ray, "occluded"));
+    }
+
+    /// Reference closest hit: every instance in order, its object ray (object_ray), every triangle of
+    /// its object with Policy's triangle test, tmax narrowing to the best t (O(all instanced triangles)).
+    template <class Policy = trace::robust>
+    InstanceHit<scalar_type> brute_force_intersect(const Ray<scalar_type>& ray) const {
+        InstanceHit<scalar_type> best;
+        if (!traceable(ray)) return best;
+        scalar_type tmax = ray.tmax;
+        for (std::size_t k = 0; k < instances_.size(); ++k) {
+            const Ray<scalar_type> r = object_ray(inverses_[k], Ray<scalar_type>{ray.org, ray.dir, ray.tmin, tmax});
+            const Hit<scalar_type> h = dynbvh::brute_force_intersect<Policy, scalar_type>(objects_[instances_[k].object].tris, r);
+            if (h) {
+                static_cast<Hit<scalar_type>&>(best) = h;
+                best.instance = static_cast<std::uint32_t>(k);
+                tmax = h.t;
+            }
+        }
+        return best;
+    }
+    /// Reference any hit (O(all instanced triangles)).
+    template <class Policy = trace::robust>
+    bool brute_force_occluded(const Ray<scalar_type>& ray) const {
+        if (!traceable(ray)) return false;
+        for (std::size_t k = 0; k < instances_.size(); ++k)
+            if (dynbvh::brute_force_occluded<Policy, scalar_type>(objects_[instances_[k].object].tris,
+                                                                 object_ray(inverses_[k], ray)))
+                return true;
+        return false;
+    }
+
+    /// Number of objects added.
+    std::size_t object_count() const noexcept { return objects_.size(); }
+    /// Number of instances (as last set).
+    std::size_t instance_count() const noexcept { return instances_.size(); }
+    /// Object `object`'s tree (throws std::invalid_argument for a bad id).
+    const object_bvh_type& object_bvh(std::uint32_t object) const {
+        check_object(object, "object_bvh", "object");
+        return objects_[object].policy.bvh();
+    }
+    /// Object `object`'s triangles as last given.
+    std::span<const triangle_type> object_triangles(std::uint32_t object) const {
+        check_object(object, "object_triangles", "object");
+        return objects_[object].tris;
+    }
+    /// The instances as last given (with the latest transforms).
+    std::span<const Instance<scalar_type>> instances() const noexcept { return instances_; }
+    /// Instance i's world-to-object transform, as object_ray uses it.
+    const Affine<scalar_type>& inverse_transform(std::size_t i) const { return inverses_.at(i); }
+    /// The top-level tree of the last commit().
+    const top_bvh_type& top() const noexcept { return top_; }
+    /// Whether commit() has seen every change.
+    bool committed() const noexcept { return !dirty_; }
+
+private:
+    struct Object {
+        object_policy policy;
+        std::span<const triangle_type> tris;
+    };
+    struct Entry {
+        typename NodeT::index_type node;
+        double enter;
+    };
+
+    void check_object(std::uint32_t object, const char* fn, const char* arg) const {
+        if (object >= objects_.size())
+            throw std::invalid_argument(std::string("dynbvh::TwoLevel::") + fn + ": " + arg + " is " + std::to_string(object) +
+                                        " but the scene has " + std::to_string(objects_.size()) + " objects");
+    }
+
+    /// The padded world box of object box `b` under `m` (inverse `inv`), rounded outward to T; `alpha`
+    /// receives the instance's reach widening (see the file comment).
+    static AABB<scalar_type> world_box(const AABB<scalar_type>& b, const Affine<scalar_type>& m,
+                                       const Affine<scalar_type>& inv, double& alpha, std::size_t i) {
+        using T = scalar_type;
+        double lo[3] = {std::numeric_limits<double>::infinity(), std::numeric_limits<double>::infinity(),
+                        std::numeric_limits<double>::infinity()};
+        double hi[3] = {-lo[0], -lo[0], -lo[0]};
+        for (unsigned corner = 0; corner < 8; ++corner) {
+            const double p[3] = {double(corner & 1 ? b.max.x : b.min.x), double(corner & 2 ? b.max.y : b.min.y),
+                                 double(corner & 4 ? b.max.z : b.min.z)};
+            for (std::size_t r = 0; r < 3; ++r) {
+                const auto e = [&](std::size_t c) { return double(m.m[4 * r + c]); };
+                const double w = e(0) * p[0] + e(1) * p[1] + e(2) * p[2] + e(3);
+                lo[r] = std::min(lo[r], w);
+                hi[r] = std::max(hi[r], w);
+            }
+        }
+        double big = 0, extent = 0;
+        for (std::size_t r = 0; r < 3; ++r) {
+            big = std::max({big, std::abs(lo[r]), std::abs(hi[r])});
+            extent = std::max(extent, hi[r] - lo[r]);
+        }
+        const double nl = detail::linear_norm(m), na = detail::linear_norm(inv);
+        const double c = std::max({std::abs(double(inv.m[3])), std::abs(double(inv.m[7])), std::abs(double(inv.m[11]))});
+        const double k = 256.0 * double(std::numeric_limits<T>::epsilon()) * 0.5;
+        const double kappa = nl * na;
+        const double pad = k * (nl * (na * big + c) + kappa * extent + big) + 16.0 * double(std::numeric_limits<T>::min());
+        alpha = k * (kappa + 1);
+        AABB<T> out;
+        constexpr T tinf = std::numeric_limits<T>::infinity();
+        for (std::size_t r = 0; r < 3; ++r) {
+            const double l = lo[r] - pad, h = hi[r] + pad;
+            T lt = T(l), ht = T(h);
+            if (double(lt) > l) lt = std::nextafter(lt, -tinf);
+            if (double(ht) < h) ht = std::nextafter(ht, tinf);
+            if (!std::isfinite(lt) || !std::isfinite(ht))
+                throw std::invalid_argument("dynbvh::TwoLevel::commit: the world box of instance " + std::to_string(i) +
+                                            " overflows the scalar type");
+            out.min[r] = lt;
+            out.max[r] = ht;
+        }
+        return out;
+    }
+
+    /// The widened slab test over t in [t0, t1] (all t of one sign; `a` = alpha for t >= 0, -alpha for
+    /// t <= 0): whether the ray comes within a |t| D of box `b` for some t there; `enter` = the first such t.
+    static bool reach(const AABB<scalar_type>& b, const double* o, const double* d, double aD, double t0, double t1,
+                      double& enter) noexcept {
+        for (std::size_t ax = 0; ax < 3; ++ax) {
+            // lo - a|t|D <= o + t d   <=>   t (d + aD) >= lo - o
+            const double c1 = d[ax] + aD, r1 = double(b.min[ax]) - o[ax];
+            if (c1 > 0) t0 = std::max(t0, r1 / c1);
+            else if (c1 < 0) t1 = std::min(t1, r1 / c1);
+            else if (r1 > 0) return false;
+            // o + t d <= hi + a|t|D   <=>   t (d - aD) <= hi - o
+            const double c2 = d[ax] - aD, r2 = double(b.max[ax]) - o[ax];
+            if (c2 > 0) t1 = std::min(t1, r2 / c2);
+            else if (c2 < 0) t0 = std::max(t0, r2 / c2);
+            else if (r2 < 0) return false;
+        }
+        enter = t0;
+        return t0 <= t1;
+    }
+    /// Whether the ray may reach box `b` within [tmin, tmax] (conservative; see the file comment).
+    bool visit(const AABB<scalar_type>& b, const double* o, const double* d, double D, double tmin, double tmax,
+               double& enter) const noexcept {
+        bool hit = false;
+        enter = std::numeric_limits<double>::infinity();
+        double e;
+        if (tmin < 0 && reach(b, o, d, -alpha_ * D, tmin, std::min(tmax, 0.0), e)) {
+            hit = true;
+            enter = e;
+        }
+        if (tmax >= 0 && reach(b, o, d, alpha_ * D, std::max(tmin, 0.0), tmax, e)) {
+            if (!hit) enter = e;
+            hit = true;
+        }
+        return hit;
+    }
+
+    template <class Policy, bool AnyHit>
+    InstanceHit<scalar_type> trace(const Ray<scalar_type>& ray, const char* fn) const {
+        using T = scalar_type;
+        using Index = typename NodeT::index_type;
+        if (dirty_)
+            throw std::logic_error(std::string("dynbvh::TwoLevel::") + fn +
+                                   ": the scene changed since the last commit(); call commit() first");
+        InstanceHit<T> best;
+        if (top_.empty() || !traceable(ray)) return best;
+        const double o[3] = {double(ray.org.x), double(ray.org.y), double(ray.org.z)};
+        const double d[3] = {double(ray.dir.x), double(ray.dir.y), double(ray.dir.z)};
+        const double D = std::max({std::abs(d[0]), std::abs(d[1]), std::abs(d[2])});
+        const double tmin = double(ray.tmin);
+        T tmax = ray.tmax;
+        double enter;
+        if (!visit(top_.nodes[0].bounds(), o, d, D, tmin, double(tmax), enter)) return best;
+
+        Entry fixed[max_depth + 1];
+        std::vector<Entry> heap;
+        Entry* stack = fixed;
+        if (top_.depth > max_depth) {   // never for our builders; a heap stack as large as the tree otherwise
+            heap.resize(top_.nodes.size());
+            stack = heap.data();
+        }
+        std::size_t sp = 0;
+        Index cur = 0;
+        for (;;) {
+            const NodeT& n = top_.nodes[cur];
+            bool descend = false;
+            if (!n.is_leaf()) {
+                double e0, e1;
+                const bool h0 = visit(top_.nodes[n.left()].bounds(), o, d, D, tmin, double(tmax), e0);
+                const bool h1 = visit(top_.nodes[n.right()].bounds(), o, d, D, tmin, double(tmax), e1);
+                if (h0 && h1) {
+                    const bool second = e1 < e0;
+                    stack[sp++] = second ? Entry{n.left(), e0} : Entry{n.right(), e1};
+                    cur = second ? n.right() : n.left();
+                    descend = true;
+                } else if (h0 || h1) {
+                    cur = h0 ? n.left() : n.right();
+                    descend = true;
+                }
+            } else {
+                for (std::size_t s = n.index; s < std::size_t(n.index) + n.count; ++s) {
+                    const std::uint32_t k = static_cast<std::uint32_t>(top_.prim_ids[s]);
+                    const Object& obj = objects_[instances_[k].object];
+                    const Ray<T> r = object_ray(inverses_[k], Ray<T>{ray.org, ray.dir, ray.tmin, tmax});
+                    if constexpr (AnyHit) {
+                        if (dynbvh::occluded<Policy>(obj.policy.bvh(), obj.tris, r)) {
+                            best.prim = 0;
+                            best.instance = k;
+                            return best;
+                        }
+                    } else {
+                        const Hit<T> h = dynbvh::intersect<Policy>(obj.policy.bvh(), obj.tris, r);
+                        if (h) {
+                            static_cast<Hit<T>&>(best) = h;
+                            best.instance = k;
+                            tmax = h.t;
+                        }
+                    }
+                }
+            }
+            if (descend) continue;
+            // Pop the next subtree the ray may still reach before the best hit.
+            bool found = false;
+            while (sp != 0) {
+                const Entry e = stack[--sp];
+                if (e.enter <= double(tmax)) {
+                    cur = e.node;
+                    found = true;
+                    break;
+                }
+            }
+            if (!found) return best;
+        }
+    }
+
+    config_type cfg_;
+    Exec ex_;
+    std::vector<Object> objects_;
+    std::vector<Instance<scalar_type>> instances_;
+    std::vector<Affine<scalar_type>> inverses_;
+    top_bvh_type top_;
+    double alpha_ = 0;        // largest reach widening over the instances (see the file comment)
+    bool dirty_ = false;
+};
+
+} // namespace dynbvh

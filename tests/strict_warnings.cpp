@@ -1,0 +1,167 @@
+// Instantiates the public templates as a user's code does, so that a compile of this file under strict
+// warning flags (-Wconversion -Wsign-conversion -Wshadow ... -Werror; tests/strict_warnings.cmake) sees
+// the warnings a user who adds dynbvh as source would see. Compiled only (never run): every call sits in
+// a function that is not called. Compile with and without -fopenmp and -DDYNBVH_WITH_TBB=1.
+#include <dynbvh/aabb.hpp>
+#include <dynbvh/binned_sah.hpp>
+#include <dynbvh/bvh.hpp>
+#include <dynbvh/cost.hpp>
+#include <dynbvh/executor.hpp>
+#include <dynbvh/intersect.hpp>
+#include <dynbvh/io/bart.hpp>
+#include <dynbvh/io/frames.hpp>
+#include <dynbvh/io/obj.hpp>
+#include <dynbvh/io/ply.hpp>
+#include <dynbvh/io/scene.hpp>
+#include <dynbvh/kbvh.hpp>
+#include <dynbvh/lbvh.hpp>
+#include <dynbvh/node.hpp>
+#include <dynbvh/ploc.hpp>
+#include <dynbvh/presplit.hpp>
+#include <dynbvh/ray.hpp>
+#include <dynbvh/refit.hpp>
+#include <dynbvh/sah.hpp>
+#include <dynbvh/traverse.hpp>
+#include <dynbvh/traverse_wide.hpp>
+#include <dynbvh/triangle.hpp>
+#include <dynbvh/validate.hpp>
+#include <dynbvh/vec.hpp>
+#include <dynbvh/version.hpp>
+#include <dynbvh/wide.hpp>
+
+#include <cstdint>
+#include <span>
+#include <string>
+#include <vector>
+
+namespace strict {
+
+using namespace dynbvh;
+
+// Every query on a binary tree and on its 4- and 8-wide forms, with both traversal policies.
+template <class NodeT, class Prim, class Exec>
+double queries(Bvh<NodeT, Prim>& bvh, std::span<const Triangle<typename NodeT::scalar_type>> tris, const Exec& ex) {
+    using T = typename NodeT::scalar_type;
+    const Ray<T> ray{.org = {0, 0, 10}, .dir = {0, 0, -1}};
+    double sum = 0;
+    refit(bvh, tris, ex);
+    sum += double(intersect<trace::robust>(bvh, tris, ray).t) + double(occluded<trace::robust>(bvh, tris, ray));
+    sum += double(intersect<trace::fast>(bvh, tris, ray).t) + double(occluded<trace::fast>(bvh, tris, ray));
+    sum += double(intersect<trace::policy<box::fast, tri::watertight>>(bvh, tris, ray).t);
+    sum += double(validate(bvh, tris).ok());
+    sum += sah_cost(bvh, {}, ex) + epo(bvh, tris, {}, ex);
+    const auto w4 = make_wide<4>(bvh, ex);
+    const auto w8 = make_wide<8>(Bvh<NodeT, Prim>(bvh), ex);
+    sum += sah_cost(w4, {}, ex) + sah_cost(w8, {}, ex);
+    sum += double(intersect<trace::robust>(w4, tris, ray).t) + double(occluded<trace::robust>(w4, tris, ray));
+    sum += double(intersect<trace::fast>(w4, tris, ray).t) + double(occluded<trace::fast>(w4, tris, ray));
+    sum += double(intersect<trace::robust>(w8, tris, ray).t) + double(occluded<trace::robust>(w8, tris, ray));
+    sum += double(intersect<trace::fast>(w8, tris, ray).t) + double(occluded<trace::fast>(w8, tris, ray));
+    sum += double(brute_force_intersect<trace::robust, T>(tris, ray).t);
+    sum += double(brute_force_occluded<trace::fast, T>(tris, ray));
+    return sum;
+}
+
+// Every builder for one node type, executor and primitive policy, each tree through every query.
+template <class N, class Prim, class Exec>
+double builders(const std::vector<Triangle<typename N::scalar_type>>& tris, const Exec& ex) {
+    using T = typename N::scalar_type;
+    const std::span<const Triangle<T>> s(tris);
+    double sum = 0;
+    auto a = lbvh::build<N, Prim>(s, {}, ex);
+    sum += queries(a, s, ex);
+    auto b = ploc::build<N, Prim>(s, {.radius = 5}, ex);
+    sum += queries(b, s, ex);
+    auto c = kbvh::build<N, Prim>(s, kbvh::Config<kbvh::with_ploc>{}, ex);
+    sum += queries(c, s, ex);
+    auto d = kbvh::build<N, Prim>(s, kbvh::Config<kbvh::with_lbvh>{}, ex);
+    sum += queries(d, s, ex);
+    auto e = kbvh::build<N, Prim>(s, kbvh::Config<kbvh::with_binned_sah>{}, ex);
+    sum += queries(e, s, ex);
+    auto f = binned_sah::build<N, Prim>(s, {}, ex);
+    sum += queries(f, s, ex);
+    // The std::vector overloads (node type from the triangles).
+    sum += double(lbvh::build(tris, {}, ex).nodes.size() + ploc::build(tris, {}, ex).nodes.size() +
+                  kbvh::build(tris, {}, ex).nodes.size() + binned_sah::build(tris, {}, ex).nodes.size());
+    return sum;
+}
+
+template <class Exec>
+double all(const Exec& ex) {
+    double sum = 0;
+    sum += builders<Node<float>, prim::indexed>({}, ex);
+    sum += builders<Node<float>, prim::copied>({}, ex);
+    sum += builders<Node<double>, prim::indexed>({}, ex);
+    sum += builders<Node<double>, prim::copied>({}, ex);
+    sum += builders<Node<double, std::uint64_t>, prim::indexed>({}, ex);
+    return sum;
+}
+
+double everything() {
+    double sum = all(exec::serial{});
+#if defined(_OPENMP)
+    sum += all(exec::omp{});
+#endif
+#if defined(DYNBVH_WITH_TBB)
+    sum += all(exec::tbb{});
+#endif
+    sum += all(exec::default_executor{});
+
+    // Triangles from indexed vertices.
+    const std::vector<Vec3f> vf;
+    const std::vector<Vec3d> vd;
+    const std::vector<std::uint32_t> i32;
+    const std::vector<std::size_t> i64;
+    const std::vector<int> isigned;
+    sum += double(make_triangles<float, std::uint32_t>(vf, i32).size() + make_triangles<double, std::size_t>(vd, i64).size() +
+                  make_triangles<float, int>(vf, isigned).size());
+
+    // The loaders.
+    std::string warnings;
+    const io::Mesh m = io::read_mesh("scene.ply", &warnings);
+    sum += double(m.triangles().size()) + double(io::read_ply("a.ply").faces.size()) +
+           double(io::read_obj("a.obj").faces.size());
+    auto frames = io::open_frames("frames/", {});
+    io::Frame fr;
+    frames->frame(0, fr);
+    sum += double(frames->frame_count()) + double(io::list_frames("frames/").size());
+    auto bart = io::load_bart("scene.aff");
+    bart->evaluate(0.5, fr);
+    bart->evaluate(0.5, fr, exec::serial{});
+    bart->update(0.6, fr);
+    bart->update(0.6, fr, exec::serial{});
+#if defined(_OPENMP)
+    bart->evaluate(0.5, fr, exec::omp{});
+    bart->update(0.6, fr, exec::omp{});
+#endif
+#if defined(DYNBVH_WITH_TBB)
+    bart->evaluate(0.5, fr, exec::tbb{});
+    bart->update(0.6, fr, exec::tbb{});
+#endif
+    sum += double(io::load_bart_from_string("v\n", "m.aff", io::bart_file_map_resolver({}))->triangle_count());
+    return sum;
+}
+
+} // namespace strict
+
+// Every member of the value types.
+template struct dynbvh::Vec3<float>;
+template struct dynbvh::Vec3<double>;
+template struct dynbvh::AABB<float>;
+template struct dynbvh::AABB<double>;
+template struct dynbvh::Triangle<float>;
+template struct dynbvh::Triangle<double>;
+template struct dynbvh::Ray<float>;
+template struct dynbvh::Ray<double>;
+template struct dynbvh::Hit<float>;
+template struct dynbvh::Hit<double>;
+template struct dynbvh::Node<float>;
+template struct dynbvh::Node<double>;
+template struct dynbvh::Node<double, std::uint64_t>;
+template struct dynbvh::WideNode<float, std::uint32_t, 4>;
+template struct dynbvh::WideNode<float, std::uint32_t, 8>;
+template struct dynbvh::WideNode<double, std::uint32_t, 4>;
+template struct dynbvh::WideNode<double, std::uint64_t, 8>;
+
+// Keeps everything() from being discarded as unused (it is never called).
+double (*strict_warnings_entry)() = &strict::everything;

@@ -1,0 +1,254 @@
+// dynamic.hpp: the refit-or-rebuild policy decides exactly as its rule says (expected decisions
+// recomputed here from refitted copies), rebuilds on topology and finiteness changes, and its tree
+// always traces like brute force; the asynchronous mode serves exact results every frame and swaps.
+#include "support.hpp"
+#include "hit_compare.hpp"
+
+#include <cmath>
+#include <limits>
+#include <string>
+#include <vector>
+
+#include <dynbvh/dynamic.hpp>
+#include <dynbvh/refit.hpp>
+#include <dynbvh/sah.hpp>
+
+using namespace dynbvh;
+using namespace dynbvh::test;
+
+namespace {
+
+/// Frame f of the scripted animation: every triangle drifts along its own fixed random direction,
+/// further each frame, so the refitted boxes grow and overlap more and more (the SAH, which is
+/// relative to the root's area, grows; a uniform explosion would leave it unchanged).
+std::vector<Trianglef> exploding(const std::vector<Trianglef>& base, int f) {
+    std::vector<Trianglef> out = base;
+    for (std::size_t i = 0; i < out.size(); ++i) {
+        Rng r(1000 + i);
+        const Vec3f v{r.uniform(-1, 1), r.uniform(-1, 1), r.uniform(-1, 1)};
+        const Vec3f d = v * (0.04f * float(f));
+        out[i].p0 += d;
+        out[i].p1 += d;
+        out[i].p2 += d;
+    }
+    return out;
+}
+
+/// Rays from around the scene at points on random triangles (most hit), random directions (most
+/// miss), plus a miss and a NaN ray.
+std::vector<Rayf> probe_rays(const std::vector<Trianglef>& tris, std::size_t n, std::uint64_t seed) {
+    std::vector<Rayf> rays;
+    const float nan = std::numeric_limits<float>::quiet_NaN();
+    rays.push_back({{nan, 0, 0}, {0, 0, 1}});
+    if (tris.empty()) return rays;
+    AABBf b;
+    for (const auto& t : tris) b.extend(t.bounds());
+    Rng r(seed);
+    const Vec3f c = b.center(), e = b.diagonal();
+    for (std::size_t i = 0; i < n; ++i) {
+        const Trianglef& t = tris[r.next() % tris.size()];
+        const float u = r.uniform(), v = r.uniform() * (1 - u);
+        const Vec3f target = t.p0 + (t.p1 - t.p0) * u + (t.p2 - t.p0) * v;
+        const Vec3f org = c + Vec3f{r.uniform(-1, 1), r.uniform(-1, 1), r.uniform(-1, 1)} * (2 * length(e) + 1);
+        rays.push_back({org, i % 4 == 3 ? Vec3f{r.uniform(-1, 1), r.uniform(-1, 1), r.uniform(-1, 1)} : target - org});
+    }
+    rays.push_back({c + Vec3f{0, 0, 100 * (length(e) + 1)}, {0, 0, 1}});   // away from everything
+    return rays;
+}
+
+template <class Tree>
+void check_exact(const Tree& bvh, const std::vector<Trianglef>& tris, std::uint64_t seed, const std::string& what) {
+    const std::span<const Trianglef> s(tris);
+    std::size_t bad = 0, hits = 0;
+    for (const Rayf& ray : probe_rays(tris, sanitizer_scaled(200), seed)) {
+        const Hitf h = intersect(bvh, s, ray);
+        const Hitf e = brute_force_intersect(s, ray);
+        hits += bool(e);
+        if (!same_hit<tri::watertight>(h, e, s, ray)) {
+            if (++bad <= 3) MESSAGE(what, ": ", describe(ray, h, e));
+        }
+        if (occluded(bvh, s, ray) != brute_force_occluded(s, ray)) ++bad;
+    }
+    CHECK_MESSAGE(bad == 0, what, ": ", bad, " rays differ from brute force");
+    CHECK(hits > 0);
+}
+
+} // namespace
+
+TEST_CASE("Dynamic: rebuilds exactly when the refitted SAH exceeds the threshold times the last rebuild's") {
+    const auto base = sphere(12, 24);
+    const exec::serial ex;
+    const DynamicConfig<ploc::Config> cfg{.rebuild_threshold = 1.3};
+    Dynamic<builder::ploc, Node<>, prim::indexed, exec::serial> dyn(cfg, ex);
+    // The expectation, computed independently: a tree of our own, refitted each frame, rebuilt by the rule.
+    Bvh<> mine;
+    double rebuilt_sah = 0;
+    int rebuilds = 0, refits = 0;
+    for (int f = 0; f < 16; ++f) {
+        const auto tris = exploding(base, f);
+        const std::span<const Trianglef> s(tris);
+        const FrameReport r = dyn.update(s);
+        CAPTURE(f);
+        CHECK(r.frame == std::size_t(f));
+        Decision want = Decision::refit;
+        double before = std::numeric_limits<double>::quiet_NaN();
+        if (f == 0) {
+            want = Decision::rebuild;
+            CHECK(r.reason == Reason::first_frame);
+        } else {
+            refit(mine, s, ex);
+            before = sah_cost(mine, {}, ex);
+            if (before > 1.3 * rebuilt_sah) want = Decision::rebuild;
+            CHECK(same_bits(r.sah_before, before));
+        }
+        if (want == Decision::rebuild) {
+            mine = ploc::build<Node<>, prim::indexed>(s, {}, ex);
+            rebuilt_sah = sah_cost(mine, {}, ex);
+            ++rebuilds;
+            if (f > 0) CHECK(r.reason == Reason::sah_growth);
+        } else {
+            ++refits;
+            CHECK(r.reason == Reason::none);
+        }
+        CHECK(r.decision == want);
+        CHECK(same_bits(r.sah_after, sah_cost(mine, {}, ex)));
+        CHECK(same_bits(r.sah_rebuilt, rebuilt_sah));
+        CHECK(dyn.bvh().nodes.size() == mine.nodes.size());
+        CHECK(r.ms >= 0);
+        CHECK(structure_problems(dyn.bvh(), tris) == "");
+        check_exact(dyn.bvh(), tris, 100 + std::uint64_t(f), "frame " + std::to_string(f));
+    }
+    // The script must exercise both branches of the rule.
+    CHECK(rebuilds >= 3);
+    CHECK(refits >= 3);
+}
+
+TEST_CASE("Dynamic: threshold 0 rebuilds every frame, +inf never rebuilds for SAH growth; bad thresholds throw") {
+    const auto base = sphere(8, 16);
+    Dynamic<builder::lbvh, Node<>, prim::copied, exec::serial> always({.rebuild_threshold = 0});
+    Dynamic<builder::lbvh, Node<>, prim::copied, exec::serial> never({.rebuild_threshold = std::numeric_limits<double>::infinity()});
+    for (int f = 0; f < 6; ++f) {
+        const auto tris = exploding(base, f);
+        CHECK(always.update(tris).decision == Decision::rebuild);
+        const FrameReport r = never.update(tris);
+        CHECK(r.decision == (f == 0 ? Decision::rebuild : Decision::refit));
+        check_exact(never.bvh(), tris, 7, "never");
+        check_exact(always.bvh(), tris, 7, "always");
+    }
+    CHECK(never.sah() > never.rebuild_sah());
+    CHECK_THROWS_WITH_AS(Dynamic<>({.rebuild_threshold = -1.0}), doctest::Contains("cfg.rebuild_threshold"), std::invalid_argument);
+    CHECK_THROWS_AS(Dynamic<>({.rebuild_threshold = std::numeric_limits<double>::quiet_NaN()}), std::invalid_argument);
+}
+
+TEST_CASE("Dynamic: a changed triangle count or set of non-finite triangles forces a rebuild") {
+    for_each_executor([&](auto ex) {
+        using E = decltype(ex);
+        CAPTURE(executor_name<E>());
+        Dynamic<builder::ploc, Node<>, prim::indexed, E> dyn({.rebuild_threshold = 1e9}, ex);
+        auto tris = sphere(10, 20);
+        CHECK(dyn.update(tris).decision == Decision::rebuild);
+        CHECK(dyn.update(tris).decision == Decision::refit);
+        tris.pop_back();
+        FrameReport r = dyn.update(tris);
+        CHECK(r.decision == Decision::rebuild);
+        CHECK(r.reason == Reason::topology);
+        CHECK(std::isnan(r.sah_before));
+        CHECK(dyn.bvh().primitive_count == tris.size());
+        check_exact(dyn.bvh(), tris, 11, "after count change");
+        // A triangle becomes NaN: rebuilt (left out); becomes finite again: rebuilt (back in the tree).
+        const Trianglef keep = tris[5];
+        tris[5].p1.y = std::numeric_limits<float>::quiet_NaN();
+        r = dyn.update(tris);
+        CHECK(r.decision == Decision::rebuild);
+        CHECK(r.reason == Reason::finiteness);
+        CHECK(dyn.bvh().excluded == 1);
+        check_exact(dyn.bvh(), tris, 12, "with a NaN triangle");
+        CHECK(dyn.update(tris).decision == Decision::refit);
+        tris[5] = keep;
+        r = dyn.update(tris);
+        CHECK(r.reason == Reason::finiteness);
+        CHECK(dyn.bvh().excluded == 0);
+        check_exact(dyn.bvh(), tris, 13, "NaN triangle restored");
+        // Empty input is a topology like any other.
+        r = dyn.update(std::span<const Trianglef>());
+        CHECK(r.decision == Decision::rebuild);
+        CHECK(dyn.bvh().empty());
+        CHECK_FALSE(intersect(dyn.bvh(), std::span<const Trianglef>(), Rayf{{0, 0, -5}, {0, 0, 1}}));
+    });
+}
+
+TEST_CASE("Dynamic async: the background tree is swapped in, refitted to the frame, and every frame is exact") {
+    const auto base = sphere(12, 24);
+    SUBCASE("deterministic: waiting after each frame, the swap comes the frame after the rebuild started") {
+        const exec::serial ex;
+        Dynamic<builder::ploc, Node<>, prim::indexed, exec::serial> dyn({.rebuild_threshold = 1.3, .async = true}, ex);
+        std::vector<Trianglef> started_over;   // the triangles of the frame the running rebuild copied
+        int swaps = 0;
+        for (int f = 0; f < 14; ++f) {
+            const auto tris = exploding(base, f);
+            const std::span<const Trianglef> s(tris);
+            const bool pending = dyn.rebuild_pending();
+            const FrameReport r = dyn.update(s);
+            CAPTURE(f);
+            if (f == 0) CHECK(r.decision == Decision::rebuild);
+            else if (pending) {
+                // Expected: a fresh build over the copied frame, refitted to this one.
+                CHECK(r.decision == Decision::swap);
+                auto expect = ploc::build<Node<>, prim::indexed>(std::span<const Trianglef>(started_over), {}, ex);
+                const double fresh = sah_cost(expect, {}, ex);
+                refit(expect, s, ex);
+                CHECK(same_bits(r.sah_rebuilt, fresh));
+                CHECK(same_bits(r.sah_after, sah_cost(expect, {}, ex)));
+                CHECK(dyn.bvh().nodes.size() == expect.nodes.size());
+                ++swaps;
+            } else {
+                CHECK(r.decision == Decision::refit);
+                CHECK(r.rebuild_started == (r.sah_before > 1.3 * r.sah_rebuilt));
+            }
+            if (r.rebuild_started) started_over = tris;
+            CHECK(dyn.rebuild_pending() == r.rebuild_started);
+            CHECK(structure_problems(dyn.bvh(), tris) == "");
+            check_exact(dyn.bvh(), tris, 200 + std::uint64_t(f), "async frame " + std::to_string(f));
+            dyn.wait_for_rebuild();
+        }
+        CHECK(swaps >= 2);
+    }
+    SUBCASE("free-running on every executor: exact each frame while the rebuild runs; a swap happens") {
+        for_each_executor([&](auto ex) {
+            using E = decltype(ex);
+            CAPTURE(executor_name<E>());
+            Dynamic<builder::ploc, Node<>, prim::copied, E> dyn({.rebuild_threshold = 1.1, .async = true}, ex);
+            int swaps = 0, started = 0;
+            for (int f = 0; f < 24; ++f) {
+                const auto tris = exploding(base, f);
+                const FrameReport r = dyn.update(tris);
+                swaps += r.decision == Decision::swap;
+                started += r.rebuild_started;
+                CHECK((r.decision != Decision::rebuild || f == 0));
+                check_exact(dyn.bvh(), tris, 300 + std::uint64_t(f), "free-running frame " + std::to_string(f));
+                if (f == 20) dyn.wait_for_rebuild();   // at least one swap below, however slow the machine
+            }
+            CHECK(started >= 1);
+            CHECK(swaps >= 1);
+            // A topology change while a rebuild runs: the running one is dropped, the new count rebuilt.
+            auto tris = exploding(base, 30);
+            dyn.update(tris);
+            tris.resize(tris.size() / 2);
+            const FrameReport r = dyn.update(tris);
+            CHECK(r.decision == Decision::rebuild);
+            CHECK_FALSE(dyn.rebuild_pending());
+            check_exact(dyn.bvh(), tris, 400, "after count change");
+        });
+    }
+    SUBCASE("moving a policy with a running rebuild keeps it valid") {
+        Dynamic<builder::ploc, Node<>, prim::indexed, exec::serial> a({.rebuild_threshold = 0, .async = true});
+        auto tris = exploding(base, 3);
+        a.update(tris);
+        a.update(exploding(base, 4));   // threshold 0: starts a rebuild
+        Dynamic<builder::ploc, Node<>, prim::indexed, exec::serial> b(std::move(a));
+        tris = exploding(base, 5);
+        b.wait_for_rebuild();
+        CHECK(b.update(tris).decision == Decision::swap);
+        check_exact(b.bvh(), tris, 500, "moved");
+    }
+}
