@@ -241,8 +241,10 @@ std::size_t check_exact(const std::vector<Triangle<T>>& tris, std::size_t nrays,
     const auto rays = make_rays(tris, test::sanitizer_scaled(nrays), 99);
     const auto bi = build.template operator()<prim::indexed>(ts);
     const auto bp = build.template operator()<prim::copied>(ts);
-    const auto wi = make_wide(bi), wp = make_wide(bp);
-    const auto w8 = make_wide<8>(bi), w8p = make_wide<8>(bp);
+    const auto wi = make_wide(bi);   // one declaration each: the types differ (clang rejects a shared `auto`)
+    const auto wp = make_wide(bp);
+    const auto w8 = make_wide<8>(bi);
+    const auto w8p = make_wide<8>(bp);
     CHECK_MESSAGE(wide_problems(bi, wi, ts) == "", what);
     CHECK_MESSAGE(wide_problems(bp, wp, ts) == "", what);
     CHECK_MESSAGE(wide_problems(bi, w8, ts) == "", what << " (8-wide)");

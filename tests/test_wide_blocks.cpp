@@ -117,9 +117,12 @@ void check_scene(const std::string& name, std::span<const Trianglef> tris, std::
     test::for_each_builder(tris, exec::serial{}, [&](std::size_t bi, const auto& bvh, bool) {
         const std::string builder = test::builder_names[bi];
         CAPTURE(builder);
-        const auto w8 = make_wide<8>(bvh), w4 = make_wide<4>(bvh);
-        const auto b88 = make_wide_blocks<8, 8>(bvh, tris), b44 = make_wide_blocks<4, 4>(bvh, tris),
-                   b84 = make_wide_blocks<8, 4>(bvh, tris);
+        // One declaration each: the types differ (clang rejects a shared `auto`).
+        const auto w8 = make_wide<8>(bvh);
+        const auto w4 = make_wide<4>(bvh);
+        const auto b88 = make_wide_blocks<8, 8>(bvh, tris);
+        const auto b44 = make_wide_blocks<4, 4>(bvh, tris);
+        const auto b84 = make_wide_blocks<8, 4>(bvh, tris);
         CHECK(block_problems(bvh, b88, w8, tris) == "");
         CHECK(block_problems(bvh, b44, w4, tris) == "");
         CHECK(block_problems(bvh, b84, w8, tris) == "");
