@@ -68,8 +68,8 @@ struct alignas(64) TriangleBlock {
     static_assert(L == 4 || L == 8, "triangle blocks have 4 or 8 lanes");
     static constexpr int lanes = L;
 
-    float v[3][3][L];          ///< vertex i's coordinate a of lane k: v[i][a][k]
-    std::uint32_t prim[L];     ///< the user's triangle index of each lane (invalid_prim for padding)
+    float v[3][3][std::size_t(L)];          ///< vertex i's coordinate a of lane k: v[i][a][k]
+    std::uint32_t prim[std::size_t(L)];     ///< the user's triangle index of each lane (invalid_prim for padding)
     std::uint32_t count;       ///< valid lanes 0..count-1; the others are padding (NaN vertices)
 
     /// Lanes from `used` on become padding; `count` = used.
@@ -343,7 +343,7 @@ struct BlockTest<tri::moller_trumbore, L> {
                                    float& tbox, std::uint32_t& best_prim, Hit<float>& hit) const {
         for (std::size_t i = first; i < end; ++i) {
             const TriangleBlock<L>& b = blocks[i];
-            alignas(64) float t[L], u[L], v[L];
+            alignas(64) float t[std::size_t(L)], u[std::size_t(L)], v[std::size_t(L)];
             for (unsigned m = hits(b, tmax, t, u, v); m != 0; m &= m - 1) {
                 const int k = std::countr_zero(m);
                 if (!(t[k] <= tmax)) continue;   // an earlier lane of this block came closer
