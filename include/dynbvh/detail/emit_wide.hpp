@@ -22,7 +22,6 @@
 #include <cstddef>
 #include <cstdint>
 #include <span>
-#include <tuple>
 #include <utility>
 #include <vector>
 
@@ -64,24 +63,41 @@ struct WideEmitter {
         return {Raw{l, b.ref}, Raw{r, b.ref + refs_of(l)}};
     }
 
-    /// detail::open_wide on the raw tree: up to W children of `b` in `c`; returns how many.
-    int open(const Raw& b, Raw* c) const {
-        std::tie(c[0], c[1]) = children(b);
+    /// A child while a wide node is opened: its raw node, box, area (opening order) and kind, each
+    /// read from the facts once.
+    struct Child {
+        Raw raw;
+        AABB<T> box;
+        double area;
+        bool leaf;
+    };
+    Child child(const Raw& r) const {
+        const bool leaf = emits_leaf(r.id);
+        const AABB<T> box = box_of(r.id);
+        return {r, box, leaf ? 0.0 : area(box), leaf};
+    }
+
+    /// detail::open_wide on the raw tree: up to W children of `b` in `c`; returns how many. The same
+    /// areas (in double, from the same boxes) in the same order, so the same choices.
+    int open(const Raw& b, Child* c) const {
+        const auto [l, r] = children(b);
+        c[0] = child(l);
+        c[1] = child(r);
         int n = 2;
         while (n < W) {
             int best = -1;
             double best_area = -1;
             for (int k = 0; k < n; ++k) {
-                if (emits_leaf(c[k].id)) continue;
-                const double a = area(box_of(c[k].id));
-                if (a > best_area) {
-                    best_area = a;
+                if (c[k].leaf) continue;
+                if (c[k].area > best_area) {
+                    best_area = c[k].area;
                     best = k;
                 }
             }
             if (best < 0) break;
-            std::tie(c[best], c[n]) = children(c[best]);
-            ++n;
+            const auto [cl, cr] = children(c[best].raw);
+            c[best] = child(cl);
+            c[n++] = child(cr);
         }
         return n;
     }
@@ -118,16 +134,16 @@ struct WideEmitter {
     /// their references too); calls inner(slot, raw child) for each inner child.
     template <class Inner>
     void fill(const Raw& b, WNode& w, std::vector<std::uint32_t>& stack, Inner&& inner) {
-        Raw c[std::size_t(W)];
+        Child c[std::size_t(W)];
         const int n = open(b, c);
         w.clear();
         for (int k = 0; k < n; ++k) {
-            w.set_bounds(k, box_of(c[k].id));
-            if (emits_leaf(c[k].id)) {
-                w.child[k] = static_cast<Index>(c[k].ref);
-                w.count[k] = write_leaf(c[k], stack);
+            w.set_bounds(k, c[k].box);
+            if (c[k].leaf) {
+                w.child[k] = static_cast<Index>(c[k].raw.ref);
+                w.count[k] = write_leaf(c[k].raw, stack);
             } else {
-                inner(k, c[k]);
+                inner(k, c[k].raw);
             }
         }
     }
