@@ -2,7 +2,10 @@
 /// @file detail/emit_wide.hpp
 /// Direct wide emission: a builder's raw binary tree and its node facts (detail/emit.hpp: boxes and
 /// the SAH leaf collapse, computed bottom-up) become a W-wide tree (wide.hpp) in one parallel
-/// top-down pass, without writing the binary `Bvh`'s nodes. The result is the tree
+/// top-down pass, without the binary `Bvh`'s node array: the top is opened on the raw tree itself;
+/// each of the (up to) 256 subtrees below it is emitted by one task as binary nodes into a task-local,
+/// cache-sized array (the binary emission's own Emitter) and collapsed from there at once, so the
+/// binary nodes never go through main memory. The result is the tree
 /// `make_wide<W>(emit_bvh(...))` gives, node for node and bit for bit:
 ///  - a raw node is a wide leaf slot exactly when the binary emission makes it a leaf (the facts'
 ///    `collapsed`, or a single reference); its references go to the prim_ids slots the binary
@@ -229,32 +232,41 @@ wide_bvh_of<Bvh<NodeT, Prim>, W> emit_wide_from_info(const BinaryTree& tree, con
             const Pending p = queue[head++];
             top[p.parent].child[p.slot] = expand_top(p.raw, p.depth);
         }
-        // Step 2: each pending subtree depth first by one task, into its own array (leaves written on the way).
+        // Step 2: each pending subtree by one task, into its own array. The task first emits its raw
+        // subtree as binary nodes into a task-local array (Emitter: the binary emission's own code and
+        // memory order, the references written to their final slots), small enough to stay in cache, then
+        // collapses that array as collapse_to_wide does (fill_wide): the same wide nodes, without the
+        // whole binary tree going through memory. Opening the raw tree directly here (as the top does)
+        // was slower than the two-step path: it walks the scattered facts in opening order, latency bound.
         const std::size_t tasks = queue.size() - head;
         std::vector<scratch_vector<WNode>> local(tasks);
         std::vector<std::uint32_t> local_depth(tasks, 0);
         const std::size_t binary_nodes = em.size_of(root);
+        std::atomic<bool> local_dedup{false};
         ex.for_tasks(tasks, [&](std::size_t k) {
             const Pending& p = queue[head + k];
+            scratch_vector<NodeT> bin_nodes(em.size_of(p.raw.id));
+            Emitter<NodeT, T> bin_em{tree, refs, info, bin_nodes, wide.prim_ids};
+            bin_em.emit_subtree({p.raw.id, {0, 1, p.raw.ref, 0}});   // no rebalancing: the tree is within max_depth
+            if (bin_em.deduplicated.load(std::memory_order_relaxed)) local_dedup.store(true, std::memory_order_relaxed);
+            const std::span<const NodeT> bin(bin_nodes);
             scratch_vector<WNode>& out = local[k];
             out.reserve(binary_nodes / (6 * tasks) + 8);
             struct Todo {
-                Raw raw;
-                Index at;             // its wide node's position in `out`
+                Index bin, at;        // local binary node; its wide node's position in `out`
                 std::uint32_t depth;
             };
             std::vector<Todo> todo;
             todo.reserve(std::size_t(W) * std::size_t(max_depth));
-            std::vector<std::uint32_t> leaf_stack;
             out.emplace_back();
-            todo.push_back({p.raw, 0, p.depth});
+            todo.push_back({0, 0, p.depth});
             std::uint32_t deepest = p.depth;
             while (!todo.empty()) {
                 const Todo t = todo.back();
                 todo.pop_back();
                 deepest = std::max(deepest, t.depth);
                 WNode w;
-                em.fill(t.raw, w, leaf_stack, [&](int slot, const Raw& c) {
+                fill_wide<W>(bin, t.bin, w, [&](int slot, Index c) {
                     w.child[slot] = Index(out.size());   // local index, shifted when concatenated
                     out.emplace_back();
                     todo.push_back({c, w.child[slot], t.depth + 1});
@@ -263,6 +275,7 @@ wide_bvh_of<Bvh<NodeT, Prim>, W> emit_wide_from_info(const BinaryTree& tree, con
             }
             local_depth[k] = deepest;
         });
+        if (local_dedup.load()) em.deduplicated.store(true);
         // Step 3: the arrays after the top, linked in, copied with shifted child indices.
         std::vector<std::size_t> base(tasks);
         std::size_t total = top.size();
