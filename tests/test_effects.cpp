@@ -505,12 +505,12 @@ TEST_CASE("effects: dynbvh-study --effects auto reports rays per kind; primary (
         REQUIRE(std::system(cmd.c_str()) == 0);
         const auto rows = read_csv(dir / "study.csv");
         REQUIRE(rows.size() == 5);   // header + 2 scenes x 2 builders x 1 frame
-        REQUIRE(rows[0].size() == 23);
+        REQUIRE(rows[0].size() == 28);
         CHECK(rows[0][14] == "rays_primary");
         CHECK(rows[0][17] == "rays_refraction");
         for (std::size_t i = 1; i < rows.size(); ++i) {
             const auto& r = rows[i];
-            REQUIRE(r.size() == 23);
+            REQUIRE(r.size() == 28);
             if (std::string(mode) == "primary") {
                 for (std::size_t k = 14; k < 23; ++k) CHECK(r[k].empty());
                 continue;

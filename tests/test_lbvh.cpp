@@ -28,7 +28,10 @@ TEST_CASE("lbvh: valid structure on soup, sphere, flat, identical centroids, 0-2
     with_nan[3].p1.x = std::nanf("");
     with_nan[500].p2.y = std::numeric_limits<float>::infinity();
     cases.emplace_back("non-finite vertices", with_nan);
-    for (const auto& [name, tris] : cases) {
+    for (const auto& entry : cases) {
+        // Not a structured binding: clang 14 (the TSan + OpenMP build) cannot capture one in a lambda.
+        const char* const name = entry.first;
+        const std::vector<Trianglef>& tris = entry.second;
         CAPTURE(name);
         for_each_executor([&](auto ex) {
             CAPTURE(executor_name<decltype(ex)>());

@@ -199,6 +199,176 @@ TEST_CASE("study: SAH of a 2-triangle scene is exact, and --info describes it") 
     CHECK(info.at("topology_changes") == false);
 }
 
+TEST_CASE("study: auto (refit or rebuild) records its decisions, consistent with its SAHs and threshold") {
+    const auto out = tmp / "auto";
+    std::filesystem::remove_all(out);
+    std::filesystem::create_directories(out);
+    // th=0 rebuilds every frame; th=1e9 never rebuilds after the first frame; auto:lbvh with either is then
+    // exactly lbvh rebuilt every frame, or the study's refit (LBVH at frame 0, refitted): same SAH per frame.
+    const int rc = run_study("--scenes n-body --scale 0.02 --frames 5 --builders lbvh,refit,ploc,auto,auto:th=1.05,"
+                             "auto:lbvh:th=0,auto:lbvh:th=1e9,auto:async=1 --res 32x24 --images 0 --threads 2 --no-warmup "
+                             "--out \"" + out.string() + "\"",
+                             out / "log.txt");
+    INFO(read_all(out / "log.txt"));
+    REQUIRE(rc == 0);
+    const Json j = Json::parse(read_all(out / "study.json"));
+    CHECK(j.at("builders") == Json::array({"lbvh", "refit", "ploc", "auto", "auto:th=1.05", "auto:lbvh:th=0",
+                                           "auto:lbvh:th=1e+09", "auto:async=1"}));
+    const auto group = [&](const std::string& b) -> const Json& {
+        for (const auto& g : j.at("results"))
+            if (g.at("builder") == b) return g;
+        FAIL("no result for " << b);
+        return j;
+    };
+    const std::vector<std::pair<std::string, double>> autos = {
+        {"auto", 1.3}, {"auto:th=1.05", 1.05}, {"auto:lbvh:th=0", 0}, {"auto:lbvh:th=1e+09", 1e9}, {"auto:async=1", 1.3}};
+    const auto& hits_ref = group("ploc").at("per_frame");
+    for (const auto& [name, th] : autos) {
+        INFO(name);
+        const auto& g = group(name);
+        const auto& frames = g.at("per_frame");
+        REQUIRE(frames.size() == 5);
+        CHECK(g.at("strategy").at("threshold").get<double>() == th);
+        std::size_t counted[3] = {0, 0, 0};
+        for (std::size_t k = 0; k < frames.size(); ++k) {
+            INFO("frame " << k);
+            const auto& f = frames.at(k);
+            const std::string d = f.at("decision").get<std::string>(), why = f.at("reason").get<std::string>();
+            counted[0] += d == "refit";
+            counted[1] += d == "rebuild";
+            counted[2] += d == "swap";
+            CHECK(f.at("sah_after").get<double>() == f.at("sah").get<double>());
+            CHECK(f.at("hits") == hits_ref.at(k).at("hits"));   // exact closest hits through every tree
+            if (k == 0) {
+                CHECK(d == "rebuild");
+                CHECK(why == "first_frame");
+                CHECK(f.at("sah_before").is_null());
+                CHECK(f.at("sah_rebuilt").get<double>() == f.at("sah").get<double>());
+                continue;
+            }
+            const double before = f.at("sah_before").get<double>();
+            const double limit = th * frames.at(k - 1).at("sah_rebuilt").get<double>();
+            if (d == "refit") {
+                // within the threshold (or, async, a background rebuild is already running)
+                if (why == "none" && name != "auto:async=1") CHECK(before <= limit);
+                CHECK(f.at("sah_after").get<double>() == before);
+                CHECK(f.at("sah_rebuilt") == frames.at(k - 1).at("sah_rebuilt"));
+            } else if (d == "rebuild") {
+                CHECK(name != "auto:async=1");   // async rebuilds in the background only
+                CHECK(why == "sah_growth");
+                CHECK(before > limit);
+                CHECK(f.at("sah_rebuilt").get<double>() == f.at("sah").get<double>());
+            } else {
+                CHECK(d == "swap");
+                CHECK(name == "auto:async=1");
+                CHECK(why == "rebuild_ready");
+            }
+        }
+        CHECK(g.at("strategy").at("refit") == counted[0]);
+        CHECK(g.at("strategy").at("rebuild") == counted[1]);
+        CHECK(g.at("strategy").at("swap") == counted[2]);
+        CHECK(counted[0] + counted[1] + counted[2] == 5);
+    }
+    // th=0: a rebuild every frame, the very tree lbvh builds; th=1e9: refits only, the study's refit tree.
+    for (std::size_t k = 0; k < 5; ++k) {
+        CHECK(group("auto:lbvh:th=0").at("per_frame").at(k).at("decision") == "rebuild");
+        // (the same tree; the SAH's parallel sum may round differently from run to run)
+        CHECK(group("auto:lbvh:th=0").at("per_frame").at(k).at("sah").get<double>() ==
+              doctest::Approx(group("lbvh").at("per_frame").at(k).at("sah").get<double>()).epsilon(1e-12));
+        if (k > 0) CHECK(group("auto:lbvh:th=1e+09").at("per_frame").at(k).at("decision") == "refit");
+        CHECK(group("auto:lbvh:th=1e+09").at("per_frame").at(k).at("sah").get<double>() ==
+              doctest::Approx(group("refit").at("per_frame").at(k).at("sah").get<double>()).epsilon(1e-12));
+    }
+    // Per-frame builders have no decisions.
+    CHECK(group("ploc").at("strategy").is_null());
+    CHECK(!group("ploc").at("per_frame").at(0).contains("decision"));
+    // CSV: the decision columns, filled for strategies only.
+    const std::string csv = read_all(out / "study.csv");
+    const std::string header = csv.substr(0, csv.find('\n'));
+    CHECK(header.ends_with(",ms_shade,decision,reason,sah_before,sah_after,sah_rebuilt"));
+    CHECK(csv.find(",auto:lbvh:th=0,") != std::string::npos);
+    std::size_t rebuild_rows = 0, plain_rows = 0;
+    for (std::size_t pos = csv.find('\n') + 1; pos < csv.size();) {
+        const std::size_t end = csv.find('\n', pos);
+        const std::string line = csv.substr(pos, end - pos);
+        pos = end + 1;
+        if (line.find(",auto") != std::string::npos) rebuild_rows += line.find(",rebuild,") != std::string::npos;
+        else plain_rows += line.ends_with(",,,,,");
+    }
+    CHECK(rebuild_rows >= 5 + 4);   // auto:lbvh:th=0 every frame, every other strategy at frame 0
+    CHECK(plain_rows == 3 * 5);
+    // The report: the strategies table and a frame-time-per-frame plot with every builder.
+    const std::string report = read_all(out / "report.md");
+    CHECK(report.find("## Strategies") != std::string::npos);
+    CHECK(report.find("| n-body | auto:lbvh:th=0 | 32x24 | 5 | 0 | 5 | 0 |") != std::string::npos);
+    CHECK(report.find("fig_frames_n-body_32x24.svg") != std::string::npos);
+    const std::string plot = read_all(out / "fig_frames_n-body_32x24.svg");
+    for (const char* b : {">lbvh</text>", ">refit</text>", ">auto</text>", ">auto:async=1</text>"}) CHECK_MESSAGE(plot.find(b) != std::string::npos, b);
+}
+
+TEST_CASE("study: two-level runs on scenes with objects, hits like a flat tree, and is skipped with a reason elsewhere") {
+    const auto out = tmp / "two_level";
+    std::filesystem::remove_all(out);
+    std::filesystem::create_directories(out);
+    {
+        std::ofstream ply(out / "one.ply");
+        ply << "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+               "element face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n";
+    }
+    const int rc = run_study("--scenes n-body,cloth-ball,\"" + (out / "one.ply").string() +
+                             "\" --scale 0.02 --frames 4 --builders ploc,two-level,two-level:lbvh,embree-two-level --res 32x24 --images 0 "
+                             "--threads 2 --no-warmup --out \"" + out.string() + "\"",
+                             out / "log.txt");
+    INFO(read_all(out / "log.txt"));
+    REQUIRE(rc == 0);
+    const Json j = Json::parse(read_all(out / "study.json"));
+    const bool embree = !j.at("embree").is_null();
+    CHECK(j.at("builders") == (embree ? Json::array({"ploc", "two-level", "two-level:lbvh", "embree-two-level"})
+                                      : Json::array({"ploc", "two-level", "two-level:lbvh"})));
+    std::vector<std::string> variants = {"two-level", "two-level:lbvh"};
+    if (embree) variants.push_back("embree-two-level");
+    const auto group = [&](const std::string& scene, const std::string& b) -> const Json* {
+        for (const auto& g : j.at("results"))
+            if (g.at("scene") == scene && g.at("builder") == b) return &g;
+        return nullptr;
+    };
+    for (const char* scene : {"n-body", "cloth-ball"})
+        for (const std::string& b : variants) {
+            INFO(scene << " " << b);
+            const Json* g = group(scene, b);
+            const Json* flat = group(scene, "ploc");
+            REQUIRE(g != nullptr);
+            REQUIRE(flat != nullptr);
+            REQUIRE(g->at("per_frame").size() == 4);
+            for (std::size_t k = 0; k < 4; ++k) {
+                const auto& f = g->at("per_frame").at(k);
+                CHECK(f.at("sah").is_null());
+                if (b != "embree-two-level") CHECK(f.at("memory_bytes").get<double>() > 0);
+                CHECK(f.at("triangles") == flat->at("per_frame").at(k).at("triangles"));
+                // Rigid objects are their first frame's triangles taken into object space and placed again:
+                // equal to the frame's triangles up to rounding, so the hit pixels agree but for a few on edges.
+                const double hits = f.at("hits").get<double>(), ref = flat->at("per_frame").at(k).at("hits").get<double>();
+                CHECK(hits > 0);
+                CHECK(std::abs(hits - ref) <= 0.01 * 32 * 24);
+            }
+        }
+    // The PLY has one object: two-level is skipped there, with the reason.
+    bool skipped = false;
+    for (const auto& sk : j.at("skipped"))
+        if (sk.at("builder") == "two-level" && sk.at("scene") == "one") {
+            skipped = true;
+            CHECK(sk.at("reason").get<std::string>().find("object") != std::string::npos);
+        }
+    CHECK(skipped);
+    CHECK(group("one", "two-level") == nullptr);
+    CHECK(group("one", "ploc") != nullptr);
+    const std::string report = read_all(out / "report.md");
+    CHECK(report.find("## Two-level") != std::string::npos);
+    CHECK(report.find("| n-body | two-level | 32x24 | 4 |") != std::string::npos);
+    CHECK(report.find("vs embree-two-level") != std::string::npos);
+    CHECK(report.find("object space") != std::string::npos);
+}
+
 TEST_CASE("study: bad input fails with a message naming it") {
     const auto out = tmp / "bad";
     std::filesystem::create_directories(out);
@@ -206,6 +376,14 @@ TEST_CASE("study: bad input fails with a message naming it") {
     CHECK(read_all(out / "log1.txt").find("no-such-scene-xyz") != std::string::npos);
     CHECK(run_study("--builders lbvh,octree --out \"" + out.string() + "\"", out / "log2.txt") != 0);
     CHECK(read_all(out / "log2.txt").find("octree") != std::string::npos);
+    CHECK(run_study("--builders auto:octree --out \"" + out.string() + "\"", out / "log5.txt") != 0);
+    CHECK(read_all(out / "log5.txt").find("auto:octree") != std::string::npos);
+    CHECK(run_study("--builders auto:th=-1 --out \"" + out.string() + "\"", out / "log6.txt") != 0);
+    CHECK(read_all(out / "log6.txt").find("th must be") != std::string::npos);
+    CHECK(run_study("--builders two-level:wide=4 --out \"" + out.string() + "\"", out / "log8.txt") != 0);
+    CHECK(read_all(out / "log8.txt").find("wide") != std::string::npos);
+    CHECK(run_study("--builders ploc:th=2 --out \"" + out.string() + "\"", out / "log7.txt") != 0);
+    CHECK(read_all(out / "log7.txt").find("th") != std::string::npos);
     CHECK(run_study("--res 640by480", out / "log3.txt") == 2);
     CHECK(read_all(out / "log3.txt").find("640by480") != std::string::npos);
     {

@@ -9,11 +9,11 @@
 /// | `n-body`         | 146,480          | 76     | hierarchical      | kept     |
 /// | `breaking`       | 251,978 (+~3 %)  | 16     | semi-hierarchical | changes  |
 /// | `large-breaking` | 1,599,852 (+~4 %)| 45     | semi-hierarchical | changes  |
+/// | `funnel`         | 18,462           | 150    | incoherent        | kept     |
 ///
 /// (Breaking scenes gain fracture faces as they break: the figure in brackets is the growth
 /// by the last frame at scale 1; it depends a little on the seed, and is relatively larger at
 /// small scales.) All counts scale with `scale`.
-/// | `funnel`         | 18,462           | 150    | incoherent        | kept     |
 ///
 /// `auto scene = dynbvh::scenes::make_builtin("cloth-ball", {.seed = 7, .scale = 0.1});`
 #pragma once

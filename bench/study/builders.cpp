@@ -6,6 +6,8 @@
 #include <stdexcept>
 
 
+#include "auto_accel.hpp"
+#include "embree_two_level.hpp"
 #include "dyn_accel.hpp"
 #include "options.hpp"
 
@@ -26,6 +28,8 @@ constexpr KindName kind_names[] = {
     {Kind::ploc, "ploc"},           {Kind::binned_sah, "binned-sah"},
     {Kind::refit, "refit"},         {Kind::embree_low, "embree-low"},
     {Kind::embree_medium, "embree-medium"}, {Kind::embree_refit, "embree-refit"},
+    {Kind::dynamic, "auto"},        {Kind::two_level, "two-level"},
+    {Kind::embree_two_level, "embree-two-level"},
 };
 
 std::string fmt_float(float v) {
@@ -44,7 +48,77 @@ T knob_number(const std::string& spec, const std::string& key, const std::string
     return x;
 }
 
+/// auto's own knobs: the rebuild builder ("auto:lbvh", second part only), th=, async=, and r=/bits= of that
+/// builder. True when `part` was one of them; false leaves it to the knobs every builder of ours has.
+bool parse_dynamic_knob(BuilderSpec& b, const std::string& spec, const std::string& part, std::size_t i) {
+    const auto eq = part.find('=');
+    if (eq == std::string::npos) {
+        if (i != 1 || (part != "ploc" && part != "lbvh"))
+            throw std::invalid_argument("builder '" + spec + "': auto's rebuild builder '" + part +
+                                        "' must be ploc or lbvh, right after auto (auto:lbvh)");
+        b.over = part == "lbvh" ? Kind::lbvh : Kind::ploc;
+        return true;
+    }
+    const std::string key = part.substr(0, eq), v = part.substr(eq + 1);
+    if (key == "th") {
+        b.threshold = knob_number<double>(spec, key, v);
+        if (!(b.threshold >= 0) || std::isinf(b.threshold))
+            throw std::invalid_argument("builder '" + spec + "': th must be a finite number >= 0 (0 rebuilds every frame)");
+        return true;
+    }
+    if (key == "async") {
+        if (v != "0" && v != "1") throw std::invalid_argument("builder '" + spec + "': async must be 0 or 1");
+        b.async = v == "1";
+        return true;
+    }
+    if (key == "r") {
+        if (b.over != Kind::ploc) throw std::invalid_argument("builder '" + spec + "': " + b.base() + ":lbvh has no knob 'r'");
+        b.radius = knob_number<std::uint32_t>(spec, key, v);
+        if (b.radius < 1 || b.radius > 65536) throw std::invalid_argument("builder '" + spec + "': r must be in 1..65536");
+        return true;
+    }
+    if (key == "bits") {
+        b.morton_bits = knob_number<int>(spec, key, v);
+        if (b.morton_bits != 30 && b.morton_bits != 63) throw std::invalid_argument("builder '" + spec + "': bits must be 30 or 63");
+        return true;
+    }
+    if (key == "prim" && v == "pre")
+        throw std::invalid_argument("builder '" + spec + "': auto traces the indexed triangles only (prim=pre is not offered)");
+    return false;
+}
+
+/// two-level's own knobs: its builder ("two-level:lbvh"), th= (each deforming object's rebuild threshold),
+/// r=/bits=; it traces the binary trees (no wide=, box=, tri=, prim= knobs). False for leaf=.
+bool parse_two_level_knob(BuilderSpec& b, const std::string& spec, const std::string& part, std::size_t i) {
+    const auto eq = part.find('=');
+    if (eq == std::string::npos) {
+        if (i != 1 || (part != "ploc" && part != "lbvh"))
+            throw std::invalid_argument("builder '" + spec + "': two-level's builder '" + part +
+                                        "' must be ploc or lbvh, right after two-level (two-level:lbvh)");
+        b.over = part == "lbvh" ? Kind::lbvh : Kind::ploc;
+        return true;
+    }
+    const std::string key = part.substr(0, eq);
+    if (key == "wide" || key == "box" || key == "tri" || key == "prim" || key == "async")
+        throw std::invalid_argument("builder '" + spec + "': two-level has no knob '" + key +
+                                    "' (it traces binary trees with the robust tests, dynbvh::TwoLevel)");
+    if (key == "th" || key == "r" || key == "bits") return parse_dynamic_knob(b, spec, part, i);
+    return false;
+}
+
 } // namespace
+
+std::string two_level_unsupported(const io::Frame& f) {
+    if (f.objects.empty()) return "the scene's frames expose no objects";
+    if (f.objects.size() < 2) return "the scene's frames expose one object only (nothing to instance)";
+    std::size_t at = 0;
+    for (const auto& o : f.objects) {
+        if (o.first_triangle != at) return "the frame's objects do not tile its triangles in order";
+        at += o.triangle_count;
+    }
+    if (at != f.triangles.size()) return "the frame's objects do not cover all its triangles";
+    return {};
+}
 
 std::string BuilderSpec::base() const {
     for (const auto& k : kind_names)
@@ -55,6 +129,7 @@ std::string BuilderSpec::base() const {
 std::string BuilderSpec::name() const {
     const BuilderSpec d{.kind = kind};
     std::string s = base();
+    if ((kind == Kind::dynamic || kind == Kind::two_level) && over == Kind::lbvh) s += ":lbvh";
     if (radius != d.radius) s += ":r=" + std::to_string(radius);
     if (beta != d.beta) s += ":beta=" + fmt_float(beta);
     if (morton_bits != d.morton_bits) s += ":bits=" + std::to_string(morton_bits);
@@ -64,6 +139,12 @@ std::string BuilderSpec::name() const {
     if (fast_tri) s += ":tri=mt";
     if (precomputed) s += ":prim=pre";
     if (wide != d.wide) s += ":wide=" + std::to_string(wide);
+    if (threshold != d.threshold) {
+        char buf[32];
+        const auto r = std::to_chars(buf, buf + sizeof buf, threshold);
+        s += ":th=" + std::string(buf, r.ptr);
+    }
+    if (async) s += ":async=1";
     return s;
 }
 
@@ -92,6 +173,8 @@ BuilderSpec parse_builder(const std::string& spec) {
     const bool uses_radius = b.kind == Kind::ploc || b.kind == Kind::kbvh;
     const bool uses_bits = b.kind == Kind::ploc || b.kind == Kind::kbvh || b.kind == Kind::lbvh || b.kind == Kind::refit;
     for (std::size_t i = 1; i < parts.size(); ++i) {
+        if (b.kind == Kind::dynamic && parse_dynamic_knob(b, spec, parts[i], i)) continue;
+        if (b.kind == Kind::two_level && parse_two_level_knob(b, spec, parts[i], i)) continue;
         const auto eq = parts[i].find('=');
         if (eq == std::string::npos) throw std::invalid_argument("builder '" + spec + "': knob '" + parts[i] + "' is not key=value");
         const std::string key = parts[i].substr(0, eq), v = parts[i].substr(eq + 1);
@@ -187,6 +270,7 @@ private:
 } // namespace
 
 std::unique_ptr<Accel> make_accel(const BuilderSpec& spec, const Backend& backend) {
+    if (spec.kind == Kind::embree_two_level) return make_embree_two_level_accel(spec, backend);
     if (spec.is_embree()) {
 #if defined(DYNBVH_STUDY_EMBREE)
         return std::make_unique<EmbreeAccel>(spec, backend);
@@ -194,6 +278,8 @@ std::unique_ptr<Accel> make_accel(const BuilderSpec& spec, const Backend& backen
         throw std::runtime_error("builder " + spec.name() + ": this dynbvh-study was built without Embree 3 (install libembree-dev)");
 #endif
     }
+    if (spec.kind == Kind::two_level) return backend.visit([&](const auto& ex) { return make_two_level_accel(spec, ex, backend); });
+    if (spec.kind == Kind::dynamic) return backend.visit([&](const auto& ex) { return make_auto_accel(spec, ex, backend); });
     return backend.visit([&](const auto& ex) { return make_dyn_accel(spec, ex, backend); });
 }
 

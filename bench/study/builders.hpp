@@ -16,10 +16,15 @@
 
 #include "backend.hpp"
 #include "camera.hpp"
+#include "results.hpp"
 
 namespace dynbvh::study {
 
-enum class Kind { lbvh, kbvh, ploc, binned_sah, refit, embree_low, embree_medium, embree_refit };
+enum class Kind { lbvh, kbvh, ploc, binned_sah, refit, embree_low, embree_medium, embree_refit,
+                  dynamic,  ///< "auto": dynbvh::Dynamic (refit or rebuild per frame) over `over`
+                  two_level, ///< "two-level": dynbvh::TwoLevel over the frame's objects, `over` for every tree
+                  embree_two_level ///< "embree-two-level": Embree 3 instancing over the frame's objects
+};
 
 /// A builder and its knobs (defaults = the library's defaults = the thesis's settings).
 /// The wide tree the study traces by default: 8-wide when compiled with AVX (one AVX step tests a
@@ -42,10 +47,16 @@ struct BuilderSpec {
     bool precomputed = false;      ///< prim::copied instead of prim::indexed
     int wide = default_wide;       ///< trace a 4- or 8-wide tree converted from the binary one (wide.hpp; the
                                    ///< conversion is part of the timed build); wide=0: the binary traversal
+    Kind over = Kind::ploc;        ///< auto, two-level: the builder its (re)builds use (ploc or lbvh: "auto:lbvh")
+    double threshold = 1.3;        ///< auto: rebuild past this many times the last rebuild's SAH ("th=1.5")
+    bool async = false;            ///< auto: rebuild on a background thread, swap when ready ("async=1")
 
-    bool is_embree() const noexcept { return kind == Kind::embree_low || kind == Kind::embree_medium || kind == Kind::embree_refit; }
+    bool is_embree() const noexcept { return kind == Kind::embree_low || kind == Kind::embree_medium || kind == Kind::embree_refit || kind == Kind::embree_two_level; }
     /// Keeps a tree from frame to frame (refit, embree-refit).
-    bool stateful() const noexcept { return kind == Kind::refit || kind == Kind::embree_refit; }
+    bool stateful() const noexcept { return kind == Kind::refit || kind == Kind::embree_refit || kind == Kind::dynamic || kind == Kind::two_level ||
+                                      kind == Kind::embree_two_level; }
+    /// A strategy holding a tree across frames that reports a decision per frame (auto).
+    bool is_strategy() const noexcept { return kind == Kind::dynamic; }
     /// Canonical spec: the base name plus every knob that differs from the default ("ploc:r=16").
     std::string name() const;
     /// The base name ("ploc").
@@ -67,6 +78,9 @@ std::string embree_version();
 class Accel {
 public:
     virtual ~Accel() = default;
+    /// Untimed, before prepare(): the frame's objects (runs of its triangles and their transforms); only
+    /// two-level uses them. The span stays valid until the next call.
+    virtual void frame_objects(std::span<const io::ObjectInstance> objects) { (void)objects; }
     /// Untimed: hand the frame's triangles over (Embree copies them into its buffers).
     virtual void prepare(std::span<const Trianglef> tris) { (void)tris; }
     /// Timed: build (or refit) the structure over `tris`.
@@ -80,6 +94,8 @@ public:
     virtual std::optional<double> sah() const = 0;
     /// Bytes of the current tree; none for Embree.
     virtual std::optional<std::size_t> memory_bytes() const = 0;
+    /// What the last build() decided (refit, rebuild, swap and the SAHs); none for per-frame builders.
+    virtual std::optional<StrategyRecord> strategy() const { return std::nullopt; }
     /// Closest hit of one ray in the current structure (`tris` = the frame last built; the renderer's
     /// primary, reflection and refraction rays). Same tests as trace(). Throws std::logic_error when
     /// a structure does not implement single rays.
@@ -103,6 +119,10 @@ struct AccelTracer {
     Hitf intersect(const Rayf& r) const { return accel.intersect(tris, r); }
     bool occluded(const Rayf& r) const { return accel.occluded(tris, r); }
 };
+
+/// Why `frame`'s objects cannot serve a two-level run (empty when they can): two-level needs at least two
+/// objects tiling the frame's triangles in order.
+std::string two_level_unsupported(const io::Frame& frame);
 
 /// Makes the structure for `spec`, running on `backend` (kept by reference: it must outlive the Accel).
 /// Throws std::runtime_error for an Embree builder in a binary without Embree.

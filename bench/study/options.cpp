@@ -56,6 +56,12 @@ const char* const footer = R"(Scenes (--scenes, comma separated; default: every 
 Builders (--builders, comma separated; default: all available)
   lbvh, kbvh (presplit + PLOC), ploc (r = 5), binned-sah, refit (LBVH at frame 0, refitted after),
   embree-low, embree-medium, embree-refit (when built with Embree 3)
+  auto, auto:lbvh (strategy dynbvh::Dynamic: refit each frame, rebuild with PLOC or LBVH past th x the last
+  rebuild's SAH; knobs th=1.3, async=1 (rebuild in the background, swap when ready), r=, bits=)
+  two-level, two-level:lbvh (dynbvh::TwoLevel: one tree per object of the frame, built once for rigid
+  objects and placed by their transforms, refitted or rebuilt for deforming ones (th=), a top-level tree
+  rebuilt every frame; scenes whose frames expose no objects are skipped)
+  embree-two-level (Embree 3 instancing: one scene per object, an instance each, a top scene per frame)
   Knobs after a colon: ploc:r=16, kbvh:beta=0.2, lbvh:bits=63, ploc:leaf=4, binned-sah:bins=16,
   ploc:tri=mt (Moller-Trumbore instead of watertight), ploc:box=fast (plain slab test),
   ploc:prim=pre (leaf triangles copied into the tree), ploc:wide=4 / ploc:wide=8 (trace a 4- or 8-wide

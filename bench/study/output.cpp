@@ -37,9 +37,30 @@ Json records_json(const std::vector<FrameRecord>& recs) {
                   {"build_ms", f.build_ms}, {"trace_ms", f.trace_ms}, {"sah", opt(f.sah)},
                   {"memory_bytes", opt(f.memory_bytes)}, {"hits", f.hits}};
         if (f.effects) j["effects"] = effects_json(*f.effects, 1);
+        if (f.strategy) {
+            j["decision"] = f.strategy->decision;
+            j["reason"] = f.strategy->reason;
+            j["sah_before"] = opt(f.strategy->sah_before);
+            j["sah_after"] = f.strategy->sah_after;
+            j["sah_rebuilt"] = f.strategy->sah_rebuilt;
+            j["rebuild_started"] = f.strategy->rebuild_started;
+        }
         a.push_back(std::move(j));
     }
     return a;
+}
+
+/// Strategies (auto): {"threshold", "refit", "rebuild", "swap"} counted over `recs`; null for per-frame builders.
+Json strategy_json(const std::vector<FrameRecord>& recs) {
+    if (recs.empty() || !recs.front().strategy) return nullptr;
+    std::size_t refit = 0, rebuild = 0, swap = 0;
+    for (const auto& f : recs) {
+        if (!f.strategy) continue;
+        refit += f.strategy->decision == "refit";
+        rebuild += f.strategy->decision == "rebuild";
+        swap += f.strategy->decision == "swap";
+    }
+    return {{"threshold", recs.front().strategy->threshold}, {"refit", refit}, {"rebuild", rebuild}, {"swap", swap}};
 }
 
 void add_summary(Json& j, const Summary& s) {
@@ -114,6 +135,7 @@ std::string study_json(const StudyResults& r) {
         // means per frame of the records' effects, or null
         const auto e = sum_effects(g.records);
         x["effects"] = e && !g.records.empty() ? effects_json(*e, double(g.records.size())) : Json(nullptr);
+        x["strategy"] = strategy_json(g.records);
         x["per_frame"] = records_json(g.records);
         j["results"].push_back(std::move(x));
     }
@@ -170,7 +192,7 @@ std::string csv_field(const std::string& s) {
 std::string study_csv(const StudyResults& r) {
     std::string o = "kind,scene,builder,group,width,height,rep,frame,triangles,build_ms,trace_ms,sah,memory_bytes,hits,"
                     "rays_primary,rays_shadow,rays_reflection,rays_refraction,ms_primary,ms_shadow,ms_reflection,ms_refraction,"
-                    "ms_shade\n";
+                    "ms_shade,decision,reason,sah_before,sah_after,sah_rebuilt\n";
     auto row = [&](const char* kind, const std::string& scene, const std::string& builder, const std::string& group, Resolution res,
                    const FrameRecord& f) {
         o += std::string(kind) + "," + csv_field(scene) + "," + csv_field(builder) + "," + csv_field(group) + "," +
@@ -180,7 +202,13 @@ std::string study_csv(const StudyResults& r) {
              std::to_string(f.hits);
         for (std::size_t k = 0; k < 4; ++k) o += "," + (f.effects ? std::to_string(f.effects->rays[k]) : std::string());
         for (std::size_t k = 0; k < 4; ++k) o += "," + (f.effects ? csv_number(f.effects->ms[k]) : std::string());
-        o += "," + (f.effects ? csv_number(f.effects->shade_ms) : std::string()) + "\n";
+        o += "," + (f.effects ? csv_number(f.effects->shade_ms) : std::string());
+        if (f.strategy)
+            o += "," + f.strategy->decision + "," + f.strategy->reason + "," +
+                 (f.strategy->sah_before ? csv_number(*f.strategy->sah_before) : std::string()) + "," +
+                 csv_number(f.strategy->sah_after) + "," + csv_number(f.strategy->sah_rebuilt) + "\n";
+        else
+            o += ",,,,,\n";
     };
     for (const auto& g : r.groups)
         for (const auto& f : g.records) row("study", g.scene, g.builder, "", g.res, f);

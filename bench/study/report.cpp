@@ -406,6 +406,143 @@ std::vector<std::string> sweep_conclusions(const StudyResults& r) {
     return out;
 }
 
+namespace {
+
+bool has_strategy(const GroupResult& g) { return !g.records.empty() && g.records.front().strategy.has_value(); }
+
+/// For a strategy's name ("auto", "auto:lbvh:wide=4"), the per-frame rebuild with its builder ("ploc",
+/// "lbvh:wide=4") and always-refit ("refit", "refit:wide=4") as the study names them.
+std::pair<std::string, std::string> strategy_baselines(const std::string& name) {
+    const BuilderSpec a = parse_builder(name);
+    BuilderSpec rebuild = a, refit = a;
+    rebuild.kind = a.over;
+    refit.kind = Kind::refit;
+    for (BuilderSpec* b : {&rebuild, &refit}) {
+        b->over = BuilderSpec{}.over;
+        b->threshold = BuilderSpec{}.threshold;
+        b->async = false;
+    }
+    if (rebuild.kind != Kind::ploc) rebuild.radius = BuilderSpec{}.radius;
+    refit.radius = BuilderSpec{}.radius;
+    return {rebuild.name(), refit.name()};
+}
+
+/// One table: per scene x strategy x resolution, the decisions counted and the frame time beside
+/// always-rebuild (same builder) and always-refit, when those ran too.
+Table strategy_table(const StudyResults& r) {
+    Table t;
+    t.title = "Strategies: refit or rebuild per frame";
+    t.header = {"scene", "strategy", "resolution", "frames", "refit", "rebuild", "swap", "frame ms", "rebuild every frame",
+                "always refit", "vs better of both"};
+    for (const auto& g : r.groups) {
+        if (!has_strategy(g)) continue;
+        std::size_t n[3] = {0, 0, 0};
+        for (const auto& f : g.records) {
+            if (!f.strategy) continue;
+            n[0] += f.strategy->decision == "refit";
+            n[1] += f.strategy->decision == "rebuild";
+            n[2] += f.strategy->decision == "swap";
+        }
+        const double ms = g.summary().mean_frame_ms();
+        const auto [rebuild_name, refit_name] = strategy_baselines(g.builder);
+        const GroupResult* rb = find_group(r, g.scene, rebuild_name, g.res);
+        const GroupResult* rf = find_group(r, g.scene, refit_name, g.res);
+        const double rb_ms = rb && !rb->records.empty() ? rb->summary().mean_frame_ms() : std::nan("");
+        const double rf_ms = rf && !rf->records.empty() ? rf->summary().mean_frame_ms() : std::nan("");
+        const double best = std::isfinite(rb_ms) && std::isfinite(rf_ms) ? std::min(rb_ms, rf_ms)
+                            : std::isfinite(rb_ms)                        ? rb_ms
+                                                                          : rf_ms;
+        t.rows.push_back({g.scene, g.builder, g.res.str(), std::to_string(g.records.size()), std::to_string(n[0]),
+                          std::to_string(n[1]), std::to_string(n[2]), fmt(ms),
+                          std::isfinite(rb_ms) ? fmt(rb_ms) + " (" + rebuild_name + ")" : "-",
+                          std::isfinite(rf_ms) ? fmt(rf_ms) + " (" + refit_name + ")" : "-",
+                          std::isfinite(best) && best > 0 ? ratio(ms / best) : "-"});
+    }
+    t.notes.push_back("frame ms = mean build (refit, rebuild or swap, plus the wide-tree conversion) + trace per frame. "
+                      "A strategy refits its tree every frame and rebuilds when the refitted SAH exceeds its threshold "
+                      "times the SAH right after its last rebuild (dynbvh::Dynamic, include/dynbvh/dynamic.hpp); the first "
+                      "frame always rebuilds. \"always refit\" is the study's refit (LBVH at the first frame, refitted "
+                      "after); \"vs better of both\" = frame ms / the lower of the two (the issue-13 target is <= 1.05x).");
+    return t;
+}
+
+bool is_two_level_name(const std::string& b) { return b.rfind("two-level", 0) == 0 || b == "embree-two-level"; }
+
+/// Per scene x two-level variant x resolution: frame time beside the best per-frame rebuild (any builder
+/// that does not keep a tree across frames, ours or Embree's).
+Table two_level_table(const StudyResults& r) {
+    Table t;
+    t.title = "Two-level: objects with their own trees, a top-level tree per frame";
+    t.header = {"scene", "strategy", "resolution", "frames", "build ms", "trace ms", "frame ms", "best per-frame rebuild",
+                "vs best rebuild", "vs embree-two-level"};
+    for (const auto& g : r.groups) {
+        if (!is_two_level_name(g.builder) || g.records.empty()) continue;
+        const Summary s = g.summary();
+        double best = std::nan("");
+        std::string best_name;
+        for (const auto& h : r.groups) {
+            if (h.scene != g.scene || !(h.res == g.res) || h.records.empty()) continue;
+            const BuilderSpec b = parse_builder(h.builder);
+            if (b.stateful()) continue;
+            const double ms = h.summary().mean_frame_ms();
+            if (!(ms >= best)) {
+                best = ms;
+                best_name = h.builder;
+            }
+        }
+        const GroupResult* e = find_group(r, g.scene, "embree-two-level", g.res);
+        const double e_ms = e && !e->records.empty() && g.builder != "embree-two-level" ? e->summary().mean_frame_ms() : std::nan("");
+        t.rows.push_back({g.scene, g.builder, g.res.str(), std::to_string(g.records.size()), fmt(s.mean_build_ms),
+                          fmt(s.mean_trace_ms), fmt(s.mean_frame_ms()),
+                          std::isfinite(best) ? fmt(best) + " (" + best_name + ")" : "-",
+                          std::isfinite(best) && best > 0 ? ratio(s.mean_frame_ms() / best) : "-",
+                          std::isfinite(e_ms) && e_ms > 0 ? ratio(s.mean_frame_ms() / e_ms) : "-"});
+    }
+    t.notes.push_back("build ms = setting each instance's transform, refitting or rebuilding the deforming objects and "
+                      "rebuilding the top level; trace = dynbvh::TwoLevel::intersect (binary trees, robust tests). The "
+                      "built-in scenes give world-space triangles only: each rigid object's triangles are taken into object "
+                      "space once, from the first frame (or the first frame after its layout changed, a fracture), "
+                      "through the inverse of that frame's transform (timed as part of that frame's build), "
+                      "so its later frames are that mesh under the frame's transform: equal to the scene's triangles up to "
+                      "rounding. Animated objects with an identity transform (cloth) are deforming: given every frame. "
+                      "The issue-13 targets on n-body: <= 0.5x the best per-frame rebuild and <= 1x embree-two-level.");
+    return t;
+}
+
+/// The frame time of every frame, one line per builder: where a strategy rebuilt (R) or swapped (S).
+LinePlot per_frame_plot(const StudyResults& r, const std::string& scene, Resolution res) {
+    LinePlot p;
+    p.title = scene + " at " + res.str() + ": frame time per frame";
+    p.xlabel = "frame";
+    p.ylabel = "build + trace, ms";
+    p.logy = true;
+    for (const auto& b : r.builders) {
+        const GroupResult* g = find_group(r, scene, b, res);
+        if (!g || g->records.empty()) continue;
+        // mean over the repetitions of each frame
+        std::map<std::uint32_t, std::pair<double, std::size_t>> per;
+        std::map<std::uint32_t, std::string> mark;
+        for (const auto& f : g->records) {
+            auto& [sum, n] = per[f.frame];
+            sum += f.build_ms + f.trace_ms;
+            ++n;
+            if (f.rep == 0 && f.strategy)
+                mark[f.frame] = f.strategy->decision == "rebuild" ? "R" : f.strategy->decision == "swap" ? "S" : "";
+        }
+        Series se;
+        se.label = b;
+        se.dashed = is_embree_name(b);
+        for (const auto& [frame, sn] : per) {
+            se.points.push_back({double(frame), sn.first / double(sn.second)});
+            if (has_strategy(*g)) se.point_labels.push_back(mark[frame]);
+        }
+        p.series.push_back(std::move(se));
+    }
+    return p;
+}
+
+} // namespace
+
 std::string write_report(const StudyResults& r) {
     namespace fs = std::filesystem;
     const fs::path dir = r.options.out;
@@ -439,6 +576,20 @@ std::string write_report(const StudyResults& r) {
         md += "## Conclusions (computed from the data above)\n\n";
         for (const auto& c : study_conclusions(r)) md += "- " + c + "\n";
         md += "\n";
+        if (std::any_of(r.groups.begin(), r.groups.end(), has_strategy)) {
+            md += "## Strategies\n\n";
+            md += render_markdown(strategy_table(r));
+            md += "Every frame's decision (refit, rebuild, swap) with its SAHs is in study.json (`per_frame`: `decision`, "
+                  "`reason`, `sah_before`, `sah_after`, `sah_rebuilt`) and study.csv; the plots of frame time per frame "
+                  "(fig_frames_*.svg, under Figures) mark a strategy's rebuilds R and swaps S.\n\n";
+        }
+        if (std::any_of(r.groups.begin(), r.groups.end(), [](const GroupResult& g) { return is_two_level_name(g.builder); })) {
+            md += "## Two-level\n\n" + render_markdown(two_level_table(r));
+            std::string skipped;
+            for (const auto& sk : r.skipped)
+                if (is_two_level_name(sk.builder)) skipped += " " + sk.builder + " on " + sk.scene + " (" + sk.reason + ");";
+            if (!skipped.empty()) md += "Not run on:" + skipped + " see Skipped.\n\n";
+        }
 
         // Figure 5.5-like: build time against triangles.
         {
@@ -509,6 +660,15 @@ std::string write_report(const StudyResults& r) {
                      s.name + " at " + r.options.resolutions[ri].str() + ": build + trace per builder.");
             }
         }
+        // Frame time per frame, every builder and strategy (one chart per scene and resolution).
+        for (const auto& s : r.scenes)
+            for (const auto& res : r.options.resolutions) {
+                const LinePlot p = per_frame_plot(r, s.name, res);
+                if (p.series.empty()) continue;
+                save("fig_frames_" + safe_file_name(s.name) + "_" + res.str() + ".svg", svg_line_plot(p),
+                     s.name + " at " + res.str() + ": build + trace time of every frame, per builder and strategy (log "
+                     "scale; R = a strategy rebuilt, S = it swapped in a background rebuild; mean over repetitions).");
+            }
         // Frame time against rays per frame (crossovers), relative to the fastest at each ray count.
         for (const auto& s : r.scenes) {
             std::vector<CostLine> lines;

@@ -36,6 +36,18 @@ struct EffectsRecord {
 /// Names of EffectsRecord's kinds, in index order.
 inline constexpr std::array<const char*, 4> effect_kind_names{"primary", "shadow", "reflection", "refraction"};
 
+/// What a strategy (`auto`: dynbvh::Dynamic, dynamic.hpp) did with its tree on one frame, from its
+/// dynbvh::FrameReport. SAHs with Ct = 3, Ci = 2, like FrameRecord::sah.
+struct StrategyRecord {
+    std::string decision;              ///< "refit", "rebuild" or "swap"
+    std::string reason;                ///< "none", "first_frame", "topology", "finiteness", "sah_growth", "rebuild_ready"
+    std::optional<double> sah_before;  ///< the previous tree refitted to this frame; none when there was none
+    double sah_after = 0;              ///< the tree serving this frame (= FrameRecord::sah)
+    double sah_rebuilt = 0;            ///< the serving tree's SAH right after its build (what the threshold multiplies)
+    double threshold = 0;              ///< the rule's rebuild threshold
+    bool rebuild_started = false;      ///< async: a background rebuild started this frame
+};
+
 /// One frame of one run: build it (timed), trace one ray per pixel (timed), then the untimed metrics.
 struct FrameRecord {
     std::uint32_t rep = 0;
@@ -47,6 +59,7 @@ struct FrameRecord {
     std::optional<std::size_t> memory_bytes;   ///< Bvh::memory_bytes; none for Embree
     std::size_t hits = 0;             ///< pixels whose ray hit something
     std::optional<EffectsRecord> effects;   ///< --effects auto only
+    std::optional<StrategyRecord> strategy; ///< strategies (auto) only: the frame's decision
 };
 
 /// Summary of a list of frame records (all repetitions together).

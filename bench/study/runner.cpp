@@ -74,6 +74,7 @@ void run_frames(FrameSource& src, const BuilderSpec& spec, const Backend& backen
     for (std::size_t k = 0; k < src.size(); ++k) {
         const io::Frame& f = src.get(k);
         const std::span<const Trianglef> tris(f.triangles);
+        accel->frame_objects(f.objects);
         accel->prepare(tris);
         const auto t0 = clock::now();
         accel->build(tris);
@@ -91,6 +92,7 @@ void run_frames(FrameSource& src, const BuilderSpec& spec, const Backend& backen
         r.trace_ms = std::chrono::duration<double, std::milli>(t3 - t2).count();
         r.sah = accel->sah();
         r.memory_bytes = accel->memory_bytes();
+        r.strategy = accel->strategy();
         r.hits = std::size_t(std::count_if(prims.begin(), prims.end(), [](std::uint32_t p) { return p != invalid_prim; }));
         if (effects) {
             const render::Stats st = render::render(AccelTracer{*accel, tris}, render::scene_view(f, src.scene()), gen, effects->image,
@@ -216,6 +218,15 @@ StudyResults run_study(const Options& opt, const Backend& backend) {
                     for (const auto& r : opt.resolutions)
                         progress.advance(double(opt.reps) * double(src.size()) * frame_weight(r.rays(), src.first_triangles()), sum.name);
                     continue;
+                }
+                if ((b.kind == Kind::two_level || b.kind == Kind::embree_two_level) && src.size() > 0) {
+                    if (const std::string why = two_level_unsupported(src.get(0)); !why.empty()) {
+                        res.skipped.push_back({sum.name, b.name(), why});
+                        progress.note("dynbvh-study: notice: " + sum.name + ": " + b.name() + " skipped (" + why + ")");
+                        for (const auto& r : opt.resolutions)
+                            progress.advance(double(opt.reps) * double(src.size()) * frame_weight(r.rays(), src.first_triangles()), sum.name);
+                        continue;
+                    }
                 }
                 run_specs.push_back(b);
             }

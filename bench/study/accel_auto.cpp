@@ -1,0 +1,116 @@
+// The `auto` strategy's Accel (see auto_accel.hpp), on every executor.
+#include "auto_accel.hpp"
+
+#include <cmath>
+#include <stdexcept>
+
+#include <dynbvh/builder.hpp>
+#include <dynbvh/dynamic.hpp>
+
+#include "dyn_accel.hpp"
+
+namespace dynbvh::study {
+
+namespace {
+
+const char* decision_name(Decision d) {
+    switch (d) {
+        case Decision::refit: return "refit";
+        case Decision::rebuild: return "rebuild";
+        case Decision::swap: return "swap";
+    }
+    return "?";
+}
+
+const char* reason_name(Reason r) {
+    switch (r) {
+        case Reason::none: return "none";
+        case Reason::first_frame: return "first_frame";
+        case Reason::topology: return "topology";
+        case Reason::finiteness: return "finiteness";
+        case Reason::sah_growth: return "sah_growth";
+        case Reason::rebuild_ready: return "rebuild_ready";
+    }
+    return "?";
+}
+
+template <class B> typename B::config builder_config(const BuilderSpec& spec);
+template <> builder::ploc::config builder_config<builder::ploc>(const BuilderSpec& spec) {
+    return {.radius = spec.radius, .morton_bits = spec.morton_bits, .leaves = {.max_leaf_size = spec.max_leaf}};
+}
+template <> builder::lbvh::config builder_config<builder::lbvh>(const BuilderSpec& spec) {
+    return {.morton_bits = spec.morton_bits, .leaves = {.max_leaf_size = spec.max_leaf}};
+}
+
+/// dynbvh::Dynamic<B> over the indexed triangles; the traced wide tree is made from its tree each frame.
+template <class Exec, class B>
+class AutoAccel final : public Accel {
+    using Trees = accel_impl::Trees<prim::indexed>;
+    using Dyn = Dynamic<B, Node<>, prim::indexed, Exec>;
+
+public:
+    AutoAccel(const BuilderSpec& spec, const Exec& ex, const Backend& backend)
+        : spec_(spec), ex_(ex), backend_(backend),
+          dyn_(typename Dyn::config_type{.rebuild_threshold = spec.threshold,
+                                         .async = spec.async,
+                                         .builder = builder_config<B>(spec),
+                                         .cost = SahCost{.ct = 3, .ci = 2}},   // the study's SAH column
+               ex) {}
+
+    void build(std::span<const Trianglef> tris) override {
+        previous_ = std::move(current_);   // freed untimed in release_previous()
+        report_ = dyn_.update(tris);
+        // The traced tree: a wide copy of the policy's tree (its leaf part is copied: the policy keeps its
+        // own for the next refit), or for wide=0 a copy of the binary tree itself.
+        if (spec_.wide == 4) current_.wide4 = make_wide<4>(dyn_.bvh(), ex_);
+        else if (spec_.wide == 8) current_.wide8 = make_wide<8>(dyn_.bvh(), ex_);
+        else current_.bvh = dyn_.bvh();
+    }
+    void release_previous() override { previous_ = Trees{}; }
+    void trace(std::span<const Trianglef> tris, const RayGen& gen, std::span<std::uint32_t> out) override {
+        current_.trace(spec_, backend_, tris, gen, out);
+    }
+    std::optional<double> sah() const override { return report_.sah_after; }
+    std::optional<std::size_t> memory_bytes() const override { return current_.memory_bytes(spec_); }
+    std::optional<StrategyRecord> strategy() const override {
+        StrategyRecord s;
+        s.decision = decision_name(report_.decision);
+        s.reason = reason_name(report_.reason);
+        if (std::isfinite(report_.sah_before)) s.sah_before = report_.sah_before;
+        s.sah_after = report_.sah_after;
+        s.sah_rebuilt = report_.sah_rebuilt;
+        s.threshold = spec_.threshold;
+        s.rebuild_started = report_.rebuild_started;
+        return s;
+    }
+    Hitf intersect(std::span<const Trianglef> tris, const Rayf& r) const override { return current_.intersect(spec_, tris, r); }
+    bool occluded(std::span<const Trianglef> tris, const Rayf& r) const override { return current_.occluded(spec_, tris, r); }
+
+private:
+    BuilderSpec spec_;
+    Exec ex_;
+    const Backend& backend_;
+    Dyn dyn_;
+    FrameReport report_;
+    Trees current_, previous_;
+};
+
+} // namespace
+
+template <class Exec>
+std::unique_ptr<Accel> make_auto_accel(const BuilderSpec& spec, const Exec& ex, const Backend& backend) {
+    if (spec.kind != Kind::dynamic) throw std::logic_error("make_auto_accel: " + spec.name() + " is not auto");
+    if (spec.precomputed) throw std::invalid_argument("builder " + spec.name() + ": auto traces the indexed triangles only");
+    if (spec.over == Kind::lbvh) return std::make_unique<AutoAccel<Exec, builder::lbvh>>(spec, ex, backend);
+    return std::make_unique<AutoAccel<Exec, builder::ploc>>(spec, ex, backend);
+}
+
+template std::unique_ptr<Accel> make_auto_accel(const BuilderSpec&, const exec::serial&, const Backend&);
+#if defined(_OPENMP)
+template std::unique_ptr<Accel> make_auto_accel(const BuilderSpec&, const exec::omp&, const Backend&);
+#endif
+#if defined(DYNBVH_WITH_TBB)
+template std::unique_ptr<Accel> make_auto_accel(const BuilderSpec&, const exec::tbb&, const Backend&);
+#endif
+
+} // namespace dynbvh::study

@@ -1,0 +1,233 @@
+// embree-two-level: Embree 3's instancing over the frame's objects, the counterpart of our two-level
+// (see embree_two_level.hpp).
+#include "embree_two_level.hpp"
+
+#include <stdexcept>
+
+#if defined(DYNBVH_STUDY_EMBREE)
+#include <embree3/rtcore.h>
+
+#include <cstring>
+#include <vector>
+
+#include <dynbvh/affine.hpp>
+
+#include "dyn_accel.hpp"
+#endif
+
+namespace dynbvh::study {
+
+#if defined(DYNBVH_STUDY_EMBREE)
+namespace {
+
+Affine<float> affine_of(const io::Transform& t) {
+    Affine<float> a;
+    for (std::size_t r = 0; r < 3; ++r)
+        for (std::size_t c = 0; c < 4; ++c) a.m[4 * r + c] = t.m[c * 4 + r];
+    return a;
+}
+
+bool is_identity(const io::Transform& t) { return t.m == io::Transform{}.m; }
+
+void fill(RTCRay& ray, const Rayf& r) {
+    ray.org_x = r.org.x;
+    ray.org_y = r.org.y;
+    ray.org_z = r.org.z;
+    ray.dir_x = r.dir.x;
+    ray.dir_y = r.dir.y;
+    ray.dir_z = r.dir.z;
+    ray.tnear = r.tmin;
+    ray.tfar = r.tmax;
+    ray.time = 0;
+    ray.mask = ~0u;
+    ray.id = 0;
+    ray.flags = 0;
+}
+
+class EmbreeTwoLevelAccel final : public Accel {
+    struct Slot {
+        std::uint32_t first = 0, count = 0;
+        bool deforming = false;
+        RTCScene scene = nullptr;      // the object's own scene
+        RTCGeometry mesh = nullptr;    // its triangles
+        RTCGeometry inst = nullptr;    // its instance in the top scene (geomID = slot index)
+    };
+
+public:
+    EmbreeTwoLevelAccel(const Backend& backend) : backend_(backend) {
+        const std::string cfg = "threads=" + std::to_string(backend.threads() > 0 ? backend.threads() : 0) + ",set_affinity=0";
+        device_ = rtcNewDevice(cfg.c_str());
+        if (!device_) throw std::runtime_error("embree-two-level: rtcNewDevice failed");
+    }
+    EmbreeTwoLevelAccel(const EmbreeTwoLevelAccel&) = delete;
+    EmbreeTwoLevelAccel& operator=(const EmbreeTwoLevelAccel&) = delete;
+    ~EmbreeTwoLevelAccel() override {
+        release();
+        rtcReleaseDevice(device_);
+    }
+
+    void frame_objects(std::span<const io::ObjectInstance> objects) override { objects_ = objects; }
+
+    /// Untimed, like every Embree variant's buffer copy: a new layout gets its object scenes (rigid objects'
+    /// triangles taken into object space through the inverse of this frame's transform); deforming objects
+    /// get this frame's triangles.
+    void prepare(std::span<const Trianglef> tris) override {
+        if (!same_layout(tris)) set_up(tris);
+        for (Slot& s : slots_) {
+            if (!s.deforming || s.count == 0) continue;
+            auto* v = static_cast<float*>(rtcGetGeometryBufferData(s.mesh, RTC_BUFFER_TYPE_VERTEX, 0));
+            std::memcpy(v, tris.data() + s.first, std::size_t(s.count) * sizeof(Trianglef));
+            rtcUpdateGeometryBuffer(s.mesh, RTC_BUFFER_TYPE_VERTEX, 0);
+            rtcCommitGeometry(s.mesh);
+        }
+    }
+    /// Timed: deforming objects refitted (first frame: built), rigid ones' transforms set, the top scene rebuilt.
+    void build(std::span<const Trianglef>) override {
+        for (std::size_t i = 0; i < slots_.size(); ++i) {
+            Slot& s = slots_[i];
+            if (s.count == 0) continue;
+            if (s.deforming || fresh_) rtcCommitScene(s.scene);
+            if (!s.deforming) {
+                const Affine<float> a = affine_of(objects_[i].transform);
+                rtcSetGeometryTransform(s.inst, 0, RTC_FORMAT_FLOAT3X4_ROW_MAJOR, a.m.data());
+            }
+            rtcCommitGeometry(s.inst);
+        }
+        rtcCommitScene(top_);
+        fresh_ = false;
+    }
+    void trace(std::span<const Trianglef>, const RayGen& gen, std::span<std::uint32_t> out) override {
+        trace_tiles(backend_, gen, out, [&](const Rayf& r) { return hit(r).prim; });
+    }
+    std::optional<double> sah() const override { return std::nullopt; }
+    std::optional<std::size_t> memory_bytes() const override { return std::nullopt; }
+    Hitf intersect(std::span<const Trianglef>, const Rayf& r) const override { return hit(r); }
+    bool occluded(std::span<const Trianglef>, const Rayf& r) const override {
+        RTCIntersectContext ctx;
+        rtcInitIntersectContext(&ctx);
+        RTCRay ray;
+        fill(ray, r);
+        rtcOccluded1(top_, &ctx, &ray);
+        return ray.tfar < 0;
+    }
+
+private:
+    Hitf hit(const Rayf& r) const {
+        RTCIntersectContext ctx;
+        rtcInitIntersectContext(&ctx);
+        RTCRayHit rh;
+        fill(rh.ray, r);
+        rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+        rh.hit.primID = RTC_INVALID_GEOMETRY_ID;
+        rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+        rtcIntersect1(top_, &ctx, &rh);
+        Hitf h;
+        if (rh.hit.geomID != RTC_INVALID_GEOMETRY_ID && rh.hit.instID[0] < slots_.size()) {
+            h.t = rh.ray.tfar;
+            h.u = rh.hit.u;
+            h.v = rh.hit.v;
+            h.prim = slots_[rh.hit.instID[0]].first + rh.hit.primID;
+        }
+        return h;
+    }
+
+    bool layout_usable(std::span<const Trianglef> tris) const {
+        if (objects_.size() < 2) return false;
+        std::size_t at = 0;
+        for (const auto& o : objects_) {
+            if (o.first_triangle != at) return false;
+            at += o.triangle_count;
+        }
+        return at == tris.size();
+    }
+    bool same_layout(std::span<const Trianglef> tris) const {
+        if (!top_) return false;
+        if (!layout_usable(tris)) return slots_.size() == 1 && slots_[0].count == tris.size();
+        if (objects_.size() != slots_.size()) return false;
+        for (std::size_t i = 0; i < slots_.size(); ++i)
+            if (objects_[i].first_triangle != slots_[i].first || objects_[i].triangle_count != slots_[i].count) return false;
+        return true;
+    }
+
+    void set_up(std::span<const Trianglef> tris) {
+        release();
+        fresh_ = true;
+        top_ = rtcNewScene(device_);
+        rtcSetSceneFlags(top_, RTC_SCENE_FLAG_DYNAMIC);
+        rtcSetSceneBuildQuality(top_, RTC_BUILD_QUALITY_LOW);
+        if (!layout_usable(tris)) slots_.push_back({0, std::uint32_t(tris.size()), true});
+        else
+            for (const auto& o : objects_) slots_.push_back({o.first_triangle, o.triangle_count, o.animated && is_identity(o.transform)});
+        for (std::size_t i = 0; i < slots_.size(); ++i) {
+            Slot& s = slots_[i];
+            if (s.count == 0) continue;
+            const std::size_t n = s.count;
+            s.scene = rtcNewScene(device_);
+            if (s.deforming) {
+                rtcSetSceneFlags(s.scene, RTC_SCENE_FLAG_DYNAMIC);
+                rtcSetSceneBuildQuality(s.scene, RTC_BUILD_QUALITY_LOW);
+            }
+            s.mesh = rtcNewGeometry(device_, RTC_GEOMETRY_TYPE_TRIANGLE);
+            // deforming objects are refitted after their first build (as embree-refit), rigid ones built once (medium)
+            rtcSetGeometryBuildQuality(s.mesh, s.deforming ? RTC_BUILD_QUALITY_REFIT : RTC_BUILD_QUALITY_MEDIUM);
+            auto* v = static_cast<float*>(rtcSetNewGeometryBuffer(s.mesh, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3,
+                                                                  sizeof(float) * 3, 3 * n + 1));
+            auto* idx = static_cast<unsigned*>(rtcSetNewGeometryBuffer(s.mesh, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3,
+                                                                        sizeof(unsigned) * 3, n));
+            for (std::size_t k = 0; k < 3 * n; ++k) idx[k] = unsigned(k);
+            if (!s.deforming) {
+                // object space: the inverse of this frame's transform, as our two-level does
+                const Affine<float> inv = inverse(affine_of(objects_[i].transform), "object " + objects_[i].name + "'s transform");
+                for (std::size_t t = 0; t < n; ++t) {
+                    const Trianglef& w = tris[s.first + t];
+                    const Vec3f p[3] = {inv.point(w.p0), inv.point(w.p1), inv.point(w.p2)};
+                    for (std::size_t c = 0; c < 3; ++c) {
+                        v[9 * t + 3 * c + 0] = p[c].x;
+                        v[9 * t + 3 * c + 1] = p[c].y;
+                        v[9 * t + 3 * c + 2] = p[c].z;
+                    }
+                }
+                rtcCommitGeometry(s.mesh);
+            }
+            rtcAttachGeometry(s.scene, s.mesh);
+            s.inst = rtcNewGeometry(device_, RTC_GEOMETRY_TYPE_INSTANCE);
+            rtcSetGeometryInstancedScene(s.inst, s.scene);
+            const Affine<float> id{};
+            rtcSetGeometryTransform(s.inst, 0, RTC_FORMAT_FLOAT3X4_ROW_MAJOR, id.m.data());
+            rtcAttachGeometryByID(top_, s.inst, unsigned(i));
+        }
+    }
+
+    void release() {
+        for (Slot& s : slots_) {
+            if (s.inst) rtcReleaseGeometry(s.inst);
+            if (s.mesh) rtcReleaseGeometry(s.mesh);
+            if (s.scene) rtcReleaseScene(s.scene);
+        }
+        slots_.clear();
+        if (top_) rtcReleaseScene(top_);
+        top_ = nullptr;
+    }
+
+    const Backend& backend_;
+    RTCDevice device_ = nullptr;
+    RTCScene top_ = nullptr;
+    std::vector<Slot> slots_;
+    std::span<const io::ObjectInstance> objects_;
+    bool fresh_ = true;
+};
+
+} // namespace
+#endif
+
+std::unique_ptr<Accel> make_embree_two_level_accel(const BuilderSpec& spec, const Backend& backend) {
+#if defined(DYNBVH_STUDY_EMBREE)
+    (void)spec;
+    return std::make_unique<EmbreeTwoLevelAccel>(backend);
+#else
+    (void)backend;
+    throw std::runtime_error("builder " + spec.name() + ": this dynbvh-study was built without Embree 3 (install libembree-dev)");
+#endif
+}
+
+} // namespace dynbvh::study
