@@ -1,6 +1,9 @@
 // Build time of every dynbvh builder next to Embree 3 (LOW, MEDIUM) on the same triangles with the
 // same thread count, in one run, so every figure reads as a ratio. Scenes: a ~92k-triangle frame of
-// the built-in cloth-ball and a ~1.6M-triangle frame of large-breaking.
+// the built-in cloth-ball and a ~1.6M-triangle frame of large-breaking. Each builder three ways: the
+// binary Bvh (BM_<builder>), binary + make_wide<8> (BM_<builder>_then_wide8) and direct wide emission
+// build_wide<8> (BM_<builder>_wide8; the same tree, the 8-wide layout the study traces); refit of the
+// binary and of the 8-wide LBVH tree (BM_refit_binary, BM_refit_wide8) beside Embree's REFIT.
 //
 //   dynbvh-bench-build [--threads N] [google benchmark flags]   (default: 2 threads, as in CI; --threads=N too)
 //
@@ -15,7 +18,9 @@
 #include <dynbvh/kbvh.hpp>
 #include <dynbvh/lbvh.hpp>
 #include <dynbvh/ploc.hpp>
+#include <dynbvh/refit.hpp>
 #include <dynbvh/sah.hpp>
+#include <dynbvh/wide.hpp>
 #include <scenes/builtin.hpp>
 
 #include "cli.hpp"
@@ -64,6 +69,42 @@ void BM_ploc_r32(benchmark::State& s) { run_dynbvh(s, [](const auto& t, const au
 void BM_kbvh(benchmark::State& s) { run_dynbvh(s, [](const auto& t, const auto& ex) { return kbvh::build(t, {}, ex); }); }
 void BM_binned_sah(benchmark::State& s) { run_dynbvh(s, [](const auto& t, const auto& ex) { return binned_sah::build(t, {}, ex); }); }
 
+// The 8-wide (traced) layout: direct emission, and binary build + make_wide<8> (same tree).
+void BM_lbvh_wide8(benchmark::State& s) { run_dynbvh(s, [](const auto& t, const auto& ex) { return lbvh::build_wide<8>(t, {}, ex); }); }
+void BM_lbvh_then_wide8(benchmark::State& s) { run_dynbvh(s, [](const auto& t, const auto& ex) { return make_wide<8>(lbvh::build(t, {}, ex), ex); }); }
+void BM_ploc_r5_wide8(benchmark::State& s) { run_dynbvh(s, [](const auto& t, const auto& ex) { return ploc::build_wide<8>(t, {.radius = 5}, ex); }); }
+void BM_ploc_r5_then_wide8(benchmark::State& s) { run_dynbvh(s, [](const auto& t, const auto& ex) { return make_wide<8>(ploc::build(t, {.radius = 5}, ex), ex); }); }
+void BM_kbvh_wide8(benchmark::State& s) { run_dynbvh(s, [](const auto& t, const auto& ex) { return kbvh::build_wide<8>(t, {}, ex); }); }
+void BM_kbvh_then_wide8(benchmark::State& s) { run_dynbvh(s, [](const auto& t, const auto& ex) { return make_wide<8>(kbvh::build(t, {}, ex), ex); }); }
+void BM_binned_sah_wide8(benchmark::State& s) { run_dynbvh(s, [](const auto& t, const auto& ex) { return binned_sah::build_wide<8>(t, {}, ex); }); }
+void BM_binned_sah_then_wide8(benchmark::State& s) { run_dynbvh(s, [](const auto& t, const auto& ex) { return make_wide<8>(binned_sah::build(t, {}, ex), ex); }); }
+
+// Refit in place of an LBVH over the same frame (the work does not depend on how far vertices moved).
+template <class Tree>
+void run_refit(benchmark::State& state, Tree tree, const std::vector<Trianglef>& tris) {
+    exec::default_executor ex{};
+#if defined(_OPENMP)
+    ex.threads = g_threads;
+#endif
+    const std::span<const Trianglef> t(tris);
+    refit(tree, t, ex);   // warm-up
+    for (auto _ : state) {
+        refit(tree, t, ex);
+        benchmark::DoNotOptimize(tree.nodes.data());
+    }
+    state.counters["tris"] = double(tris.size());
+    state.counters["Mtris/s"] = benchmark::Counter(double(tris.size()) * double(state.iterations()) * 1e-6,
+                                                   benchmark::Counter::kIsRate);
+}
+void BM_refit_binary(benchmark::State& s) {
+    const auto& tris = scene_triangles(scene_of(s.range(0)));
+    run_refit(s, lbvh::build(tris), tris);
+}
+void BM_refit_wide8(benchmark::State& s) {
+    const auto& tris = scene_triangles(scene_of(s.range(0)));
+    run_refit(s, lbvh::build_wide<8>(std::span<const Trianglef>(tris)), tris);
+}
+
 void run_embree(benchmark::State& state, bench::EmbreeMode mode) {
     const auto& tris = scene_triangles(scene_of(state.range(0)));
     bench::EmbreeBvh e(g_threads, mode);
@@ -91,8 +132,18 @@ BENCHMARK(BM_ploc_r5) DYNBVH_SCENES;
 BENCHMARK(BM_ploc_r32) DYNBVH_SCENES;
 BENCHMARK(BM_kbvh) DYNBVH_SCENES;
 BENCHMARK(BM_binned_sah) DYNBVH_SCENES;
+BENCHMARK(BM_lbvh_then_wide8) DYNBVH_SCENES;
+BENCHMARK(BM_lbvh_wide8) DYNBVH_SCENES;
+BENCHMARK(BM_ploc_r5_then_wide8) DYNBVH_SCENES;
+BENCHMARK(BM_ploc_r5_wide8) DYNBVH_SCENES;
+BENCHMARK(BM_kbvh_then_wide8) DYNBVH_SCENES;
+BENCHMARK(BM_kbvh_wide8) DYNBVH_SCENES;
+BENCHMARK(BM_binned_sah_then_wide8) DYNBVH_SCENES;
+BENCHMARK(BM_binned_sah_wide8) DYNBVH_SCENES;
 BENCHMARK(BM_embree_medium) DYNBVH_SCENES;
 BENCHMARK(BM_embree_refit) DYNBVH_SCENES;
+BENCHMARK(BM_refit_binary) DYNBVH_SCENES;
+BENCHMARK(BM_refit_wide8) DYNBVH_SCENES;
 
 } // namespace
 

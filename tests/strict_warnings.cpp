@@ -50,8 +50,10 @@ double queries(Bvh<NodeT, Prim>& bvh, std::span<const Triangle<typename NodeT::s
     sum += double(intersect<trace::policy<box::fast, tri::watertight>>(bvh, tris, ray).t);
     sum += double(validate(bvh, tris).ok());
     sum += sah_cost(bvh, {}, ex) + epo(bvh, tris, {}, ex);
-    const auto w4 = make_wide<4>(bvh, ex);
-    const auto w8 = make_wide<8>(Bvh<NodeT, Prim>(bvh), ex);
+    auto w4 = make_wide<4>(bvh, ex);
+    auto w8 = make_wide<8>(Bvh<NodeT, Prim>(bvh), ex);
+    refit(w4, tris, ex);
+    refit(w8, tris, ex);
     sum += sah_cost(w4, {}, ex) + sah_cost(w8, {}, ex);
     sum += double(intersect<trace::robust>(w4, tris, ray).t) + double(occluded<trace::robust>(w4, tris, ray));
     sum += double(intersect<trace::fast>(w4, tris, ray).t) + double(occluded<trace::fast>(w4, tris, ray));
@@ -80,6 +82,13 @@ double builders(const std::vector<Triangle<typename N::scalar_type>>& tris, cons
     sum += queries(e, s, ex);
     auto f = binned_sah::build<N, Prim>(s, {}, ex);
     sum += queries(f, s, ex);
+    // Direct wide emission, every builder, 4 and 8 wide.
+    sum += double(lbvh::build_wide<8, N, Prim>(s, {}, ex).nodes.size() + lbvh::build_wide<4, N, Prim>(s, {}, ex).nodes.size());
+    sum += double(ploc::build_wide<8, N, Prim>(s, {.radius = 5}, ex).nodes.size() + ploc::build_wide<4, N, Prim>(s, {}, ex).nodes.size());
+    sum += double(kbvh::build_wide<8, N, Prim>(s, kbvh::Config<kbvh::with_ploc>{}, ex).nodes.size() +
+                  kbvh::build_wide<4, N, Prim>(s, kbvh::Config<kbvh::with_lbvh>{}, ex).nodes.size() +
+                  kbvh::build_wide<8, N, Prim>(s, kbvh::Config<kbvh::with_binned_sah>{}, ex).nodes.size());
+    sum += double(binned_sah::build_wide<8, N, Prim>(s, {}, ex).nodes.size() + binned_sah::build_wide<4, N, Prim>(s, {}, ex).nodes.size());
     // The std::vector overloads (node type from the triangles).
     sum += double(lbvh::build(tris, {}, ex).nodes.size() + ploc::build(tris, {}, ex).nodes.size() +
                   kbvh::build(tris, {}, ex).nodes.size() + binned_sah::build(tris, {}, ex).nodes.size());

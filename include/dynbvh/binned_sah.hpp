@@ -27,6 +27,7 @@
 
 #include "bvh.hpp"
 #include "detail/emit.hpp"
+#include "detail/emit_wide.hpp"
 #include "executor.hpp"
 #include "detail/references.hpp"
 
@@ -409,6 +410,16 @@ Bvh<NodeT, Prim> build(std::span<const Triangle<typename NodeT::scalar_type>> tr
     auto refs = make_references(tris, ex);
     const auto tree = build_tree(refs, cfg, ex);
     return emit_bvh<NodeT, Prim>(tree, refs, tris, cfg.leaves, ex);
+}
+
+/// Builds a binned SAH BVH straight into the W-wide layout (W = 4 or 8; detail/emit_wide.hpp): the tree
+/// `make_wide<W>(build<NodeT, Prim>(tris, cfg, ex), ex)` gives, bit for bit, without the binary nodes.
+template <int W = 8, class NodeT = Node<>, class Prim = prim::indexed, class Exec = exec::default_executor>
+wide_bvh_of<Bvh<NodeT, Prim>, W> build_wide(std::span<const Triangle<typename NodeT::scalar_type>> tris,
+                                            const Config& cfg = {}, const Exec& ex = {}) {
+    auto refs = make_references(tris, ex);
+    const auto tree = build_tree(refs, cfg, ex);
+    return emit_wide_bvh<W, NodeT, Prim>(tree, refs, tris, cfg.leaves, ex);
 }
 
 /// The same for a std::vector of triangles of any scalar, the node type following the triangles:

@@ -21,6 +21,7 @@
 #include "binned_sah.hpp"
 #include "bvh.hpp"
 #include "detail/emit.hpp"
+#include "detail/emit_wide.hpp"
 #include "executor.hpp"
 #include "lbvh.hpp"
 #include "ploc.hpp"
@@ -82,6 +83,15 @@ Bvh<NodeT, Prim> build(std::span<const Triangle<typename NodeT::scalar_type>> tr
                        const Exec& ex = {}) {
     auto [refs, tree] = build_tree<Builder>(tris, cfg, ex);
     return emit_bvh<NodeT, Prim>(tree, refs, tris, cfg.builder.leaves, ex);
+}
+
+/// Builds a KBVH straight into the W-wide layout (W = 4 or 8; detail/emit_wide.hpp): the tree
+/// `make_wide<W>(build<NodeT, Prim, Builder>(tris, cfg, ex), ex)` gives, bit for bit, without the binary nodes.
+template <int W = 8, class NodeT = Node<>, class Prim = prim::indexed, class Builder = with_ploc, class Exec = exec::default_executor>
+wide_bvh_of<Bvh<NodeT, Prim>, W> build_wide(std::span<const Triangle<typename NodeT::scalar_type>> tris,
+                                            const Config<Builder>& cfg = {}, const Exec& ex = {}) {
+    auto [refs, tree] = build_tree<Builder>(tris, cfg, ex);
+    return emit_wide_bvh<W, NodeT, Prim>(tree, refs, tris, cfg.builder.leaves, ex);
 }
 
 /// The same for a std::vector of triangles of any scalar, the node type following the triangles:

@@ -24,6 +24,7 @@
 
 #include "bvh.hpp"
 #include "detail/emit.hpp"
+#include "detail/emit_wide.hpp"
 #include "executor.hpp"
 #include "detail/morton.hpp"
 #include "detail/references.hpp"
@@ -125,6 +126,19 @@ Bvh<NodeT, Prim> build(std::span<const Triangle<typename NodeT::scalar_type>> tr
     scratch_vector<detail::RawNodeInfo<T>> info(refs.size() > 1 ? refs.size() - 1 : 0);
     const auto tree = detail::build_tree(refs, cfg, info.data(), ex);
     return dynbvh::detail::emit_from_info<NodeT, Prim>(tree, refs, tris, std::span<const detail::RawNodeInfo<T>>(info), ex);
+}
+
+/// Builds an LBVH straight into the W-wide layout (W = 4 or 8; detail/emit_wide.hpp): the tree
+/// `make_wide<W>(build<NodeT, Prim>(tris, cfg, ex), ex)` gives, bit for bit, without the binary nodes.
+/// One line: `auto wide = dynbvh::lbvh::build_wide<8>(tris, {}, ex);`
+template <int W = 8, class NodeT = Node<>, class Prim = prim::indexed, class Exec = exec::default_executor>
+wide_bvh_of<Bvh<NodeT, Prim>, W> build_wide(std::span<const Triangle<typename NodeT::scalar_type>> tris,
+                                            const Config& cfg = {}, const Exec& ex = {}) {
+    using T = typename NodeT::scalar_type;
+    auto refs = make_references(tris, ex);
+    scratch_vector<detail::RawNodeInfo<T>> info(refs.size() > 1 ? refs.size() - 1 : 0);
+    const auto tree = detail::build_tree(refs, cfg, info.data(), ex);
+    return dynbvh::detail::emit_wide_from_info<W, NodeT, Prim>(tree, refs, tris, std::span<const detail::RawNodeInfo<T>>(info), ex);
 }
 
 /// The same for a std::vector of triangles of any scalar, the node type following the triangles:

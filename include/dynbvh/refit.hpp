@@ -7,12 +7,16 @@
 /// Presplit fragments are refitted to their whole triangle's box (no re-clipping).
 #pragma once
 
+#include <atomic>
+#include <cstddef>
 #include <cstdint>
 #include <span>
 
 #include "bvh.hpp"
 #include "detail/check_triangles.hpp"
+#include "detail/scratch.hpp"
 #include "executor.hpp"
+#include "wide.hpp"
 
 namespace dynbvh {
 
@@ -39,6 +43,58 @@ void refit(Bvh<NodeT, Prim>& bvh, std::span<const Triangle<typename NodeT::scala
         if (node.is_leaf()) continue;
         node.set_bounds(merge(bvh.nodes[node.left()].bounds(), bvh.nodes[node.right()].bounds()));
     }
+}
+
+/// Recomputes all boxes of the wide tree `bvh` from `tris` in place (same contract as the binary refit:
+/// a span whose size is not `bvh.primitive_count` throws std::invalid_argument, `bvh` unchanged; for
+/// prim::copied the leaf triangles are updated too). The topology stays; every slot box equals, bit for
+/// bit, the refitted binary tree's box of the binary node the slot was collapsed from (min/max unions agree
+/// in any order, a -0/+0 tie aside). make_wide of the refitted binary tree may differ: it would open nodes
+/// by their new areas. O(nodes + references), parallel:
+/// leaf slots of every node first, then inner slots bottom-up, each node finished by the last of its
+/// inner children to finish (an atomic count per node, no assumption on the node order).
+template <class WNodeT, class Prim, class Exec = exec::default_executor>
+void refit(WideBvh<WNodeT, Prim>& bvh, std::span<const Triangle<typename WNodeT::scalar_type>> tris, const Exec& ex = {}) {
+    using T = typename WNodeT::scalar_type;
+    constexpr int W = WNodeT::width;
+    detail::check_triangles(bvh, tris.size(), "refit");
+    if (bvh.empty()) return;
+    if constexpr (WideBvh<WNodeT, Prim>::precomputed)
+        ex.for_each(0, bvh.prim_ids.size(), [&](std::size_t s) { bvh.leaf_triangles[s] = tris[bvh.prim_ids[s]]; });
+    const std::size_t n = bvh.nodes.size();
+    constexpr std::size_t none = ~std::size_t(0);
+    // Step 1: leaf slots from the triangles; each node's parent slot (node * W + slot) and inner child count.
+    scratch_vector<std::size_t> parent(n);
+    scratch_vector<std::atomic<std::uint32_t>> pending(n);
+    scratch_vector<std::uint8_t> starts(n);   // no inner child: a walk starts here (pending changes in step 2)
+    parent[0] = none;
+    ex.for_each(0, n, [&](std::size_t i) {
+        WNodeT& node = bvh.nodes[i];
+        std::uint32_t inner = 0;
+        for (int k = 0; k < W; ++k) {
+            if (node.empty_slot(k)) continue;
+            if (!node.is_leaf(k)) {
+                parent[node.child[k]] = i * std::size_t(W) + std::size_t(k);
+                ++inner;
+                continue;
+            }
+            AABB<T> box;
+            for (std::size_t s = node.child[k]; s < std::size_t(node.child[k]) + node.count[k]; ++s) box.extend(tris[bvh.prim_ids[s]].bounds());
+            node.set_bounds(k, box);
+        }
+        pending[i].store(inner, std::memory_order_relaxed);
+        starts[i] = std::uint8_t(inner == 0 ? 1 : 0);
+    }, 1024);
+    // Step 2: from every node with no inner child, up while this node is its parent's last to finish.
+    ex.for_each(0, n, [&](std::size_t i) {
+        if (!starts[i]) return;
+        for (std::size_t c = i; parent[c] != none;) {
+            const std::size_t p = parent[c] / std::size_t(W);
+            bvh.nodes[p].set_bounds(int(parent[c] % std::size_t(W)), bvh.nodes[c].bounds());
+            if (pending[p].fetch_sub(1, std::memory_order_acq_rel) != 1) return;   // a sibling is still open
+            c = p;
+        }
+    }, 1024);
 }
 
 } // namespace dynbvh

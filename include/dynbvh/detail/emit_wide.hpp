@@ -1,0 +1,327 @@
+// SPDX-License-Identifier: MIT
+/// @file detail/emit_wide.hpp
+/// Direct wide emission: a builder's raw binary tree and its node facts (detail/emit.hpp: boxes and
+/// the SAH leaf collapse, computed bottom-up) become a W-wide tree (wide.hpp) in one parallel
+/// top-down pass, without the binary `Bvh`'s node array: the top is opened on the raw tree itself;
+/// each of the (up to) 256 subtrees below it is emitted by one task as binary nodes into a task-local,
+/// cache-sized array (the binary emission's own Emitter) and collapsed from there at once, so the
+/// binary nodes never go through main memory. The result is the tree
+/// `make_wide<W>(emit_bvh(...))` gives, node for node and bit for bit:
+///  - a raw node is a wide leaf slot exactly when the binary emission makes it a leaf (the facts'
+///    `collapsed`, or a single reference); its references go to the prim_ids slots the binary
+///    emission gives them (depth first, left subtree first: a node's first slot is its parent's, or
+///    that plus its left sibling's reference count), collected in the same order;
+///  - a wide node opens the inner child of largest surface area, computed from the same box in the
+///    same precision, as detail::open_wide does on the binary nodes;
+///  - the node order follows detail::collapse_to_wide step for step (the top breadth first until 256
+///    subtrees are open, each subtree depth first by one task, then concatenated);
+///  - deduplicated leaves (presplit fragments) are compacted by first slot, as compact_references does.
+/// A raw tree whose emitted height exceeds max_depth (the binary emission would rebalance part of it)
+/// takes the two-step path instead, so the contract holds there too. O(n), parallel.
+#pragma once
+
+#include <algorithm>
+#include <atomic>
+#include <cstddef>
+#include <cstdint>
+#include <span>
+#include <utility>
+#include <vector>
+
+#include "../bvh.hpp"
+#include "../cost.hpp"
+#include "../executor.hpp"
+#include "../wide.hpp"
+#include "emit.hpp"
+#include "references.hpp"
+#include "scratch.hpp"
+
+namespace dynbvh {
+namespace detail {
+
+/// State of the direct wide emission (see the file comment): the raw tree, its facts and the output.
+template <int W, class Index, class T>
+struct WideEmitter {
+    using WNode = WideNode<T, Index, W>;
+    const BinaryTree& tree;
+    const References<T>& refs;
+    std::span<const RawNodeInfo<T>> info;
+    Index* prim_ids;
+    std::atomic<bool> deduplicated{false};   ///< some leaf held two fragments of one triangle
+
+    /// A raw node (inner id or leaf-flagged reference) and the first prim_ids slot of its references.
+    struct Raw {
+        std::uint32_t id;
+        std::uint32_t ref;
+    };
+
+    bool emits_leaf(std::uint32_t id) const { return BinaryTree::is_leaf(id) || info[id].collapsed; }
+    std::uint32_t refs_of(std::uint32_t id) const { return BinaryTree::is_leaf(id) ? 1u : info[id].refs; }
+    std::uint32_t size_of(std::uint32_t id) const { return BinaryTree::is_leaf(id) ? 1u : info[id].size; }
+    AABB<T> box_of(std::uint32_t id) const { return BinaryTree::is_leaf(id) ? refs.box[BinaryTree::ref_of(id)] : info[id].box(); }
+
+    /// The two children of inner raw node `b`, with their first slots (left subtree first).
+    std::pair<Raw, Raw> children(const Raw& b) const {
+        const std::uint32_t l = tree.left[b.id], r = tree.right[b.id];
+        return {Raw{l, b.ref}, Raw{r, b.ref + refs_of(l)}};
+    }
+
+    /// A child while a wide node is opened: its raw node, box, area (opening order) and kind, each
+    /// read from the facts once.
+    struct Child {
+        Raw raw;
+        AABB<T> box;
+        double area;
+        bool leaf;
+    };
+    Child child(const Raw& r) const {
+        const bool leaf = emits_leaf(r.id);
+        const AABB<T> box = box_of(r.id);
+        return {r, box, leaf ? 0.0 : area(box), leaf};
+    }
+
+    /// detail::open_wide on the raw tree: up to W children of `b` in `c`; returns how many. The same
+    /// areas (in double, from the same boxes) in the same order, so the same choices.
+    int open(const Raw& b, Child* c) const {
+        const auto [l, r] = children(b);
+        c[0] = child(l);
+        c[1] = child(r);
+        int n = 2;
+        while (n < W) {
+            int best = -1;
+            double best_area = -1;
+            for (int k = 0; k < n; ++k) {
+                if (c[k].leaf) continue;
+                if (c[k].area > best_area) {
+                    best_area = c[k].area;
+                    best = k;
+                }
+            }
+            if (best < 0) break;
+            const auto [cl, cr] = children(c[best].raw);
+            c[best] = child(cl);
+            c[n++] = child(cr);
+        }
+        return n;
+    }
+
+    /// Writes the references of leaf `it` to its slots (Emitter::write_leaf's order and deduplication);
+    /// returns the count.
+    Index write_leaf(const Raw& it, std::vector<std::uint32_t>& stack) {
+        Index* out = prim_ids + it.ref;
+        std::uint32_t n = 0;
+        if (BinaryTree::is_leaf(it.id)) {
+            out[n++] = static_cast<Index>(refs.prim[BinaryTree::ref_of(it.id)]);
+        } else {
+            stack.clear();
+            stack.push_back(it.id);
+            while (!stack.empty()) {
+                const std::uint32_t c = stack.back();
+                stack.pop_back();
+                for (std::uint32_t child : {tree.left[c], tree.right[c]}) {
+                    if (BinaryTree::is_leaf(child)) out[n++] = static_cast<Index>(refs.prim[BinaryTree::ref_of(child)]);
+                    else stack.push_back(child);
+                }
+            }
+        }
+        std::uint32_t count = n;
+        if (n > 1 && refs.repeats) {
+            std::sort(out, out + n);
+            count = static_cast<std::uint32_t>(std::unique(out, out + n) - out);
+            if (count < n) deduplicated.store(true, std::memory_order_relaxed);
+        }
+        return static_cast<Index>(count);
+    }
+
+    /// detail::fill_wide on the raw tree: the wide node for inner raw node `b` (leaf slots written,
+    /// their references too); calls inner(slot, raw child) for each inner child.
+    template <class Inner>
+    void fill(const Raw& b, WNode& w, std::vector<std::uint32_t>& stack, Inner&& inner) {
+        Child c[std::size_t(W)];
+        const int n = open(b, c);
+        w.clear();
+        for (int k = 0; k < n; ++k) {
+            w.set_bounds(k, c[k].box);
+            if (c[k].leaf) {
+                w.child[k] = static_cast<Index>(c[k].raw.ref);
+                w.count[k] = write_leaf(c[k].raw, stack);
+            } else {
+                inner(k, c[k].raw);
+            }
+        }
+    }
+};
+
+/// Closes the gaps deduplicated leaves left in prim_ids (compact_references on a wide tree: the leaf
+/// slots in order of their first slot, packed). O(n log n), serial; presplit trees only.
+template <class WNodeT, class Prim>
+void compact_wide_references(WideBvh<WNodeT, Prim>& bvh) {
+    using Index = typename WNodeT::index_type;
+    struct LeafSlot { Index first; std::size_t node; int slot; };
+    std::vector<LeafSlot> leaves;
+    for (std::size_t i = 0; i < bvh.nodes.size(); ++i)
+        for (int k = 0; k < WNodeT::width; ++k)
+            if (bvh.nodes[i].is_leaf(k)) leaves.push_back({bvh.nodes[i].child[k], i, k});
+    std::sort(leaves.begin(), leaves.end(), [](const LeafSlot& a, const LeafSlot& b) { return a.first < b.first; });
+    std::size_t out = 0;
+    for (const LeafSlot& l : leaves) {
+        WNodeT& node = bvh.nodes[l.node];
+        const Index count = node.count[l.slot];
+        std::copy(bvh.prim_ids.begin() + std::ptrdiff_t(l.first), bvh.prim_ids.begin() + std::ptrdiff_t(l.first + count),
+                  bvh.prim_ids.begin() + std::ptrdiff_t(out));
+        node.child[l.slot] = static_cast<Index>(out);
+        out += count;
+    }
+    bvh.prim_ids.resize(out);
+}
+
+/// emit_wide_bvh's top-down pass from the facts of every inner node (computed by compute_node_info or
+/// by the builder itself, as LBVH does). See the file comment. O(n), parallel.
+template <int W, class NodeT, class Prim, class T, class Exec>
+wide_bvh_of<Bvh<NodeT, Prim>, W> emit_wide_from_info(const BinaryTree& tree, const References<T>& refs,
+                                                     std::span<const Triangle<T>> tris,
+                                                     std::span<const RawNodeInfo<T>> info, const Exec& ex) {
+    using Index = typename NodeT::index_type;
+    using Result = wide_bvh_of<Bvh<NodeT, Prim>, W>;
+    using WNode = typename Result::node_type;
+    using Em = WideEmitter<W, Index, T>;
+    using Raw = typename Em::Raw;
+    const std::size_t n_refs = refs.size();
+    const std::uint32_t root = tree.root;
+    // Too deep: the binary emission rebalances, so take its path to keep the same tree.
+    if (n_refs != 0 && !BinaryTree::is_leaf(root) && !info[root].collapsed && info[root].height > max_depth)
+        return make_wide<W>(emit_from_info<NodeT, Prim>(tree, refs, tris, info, ex), ex);
+
+    Result wide;
+    wide.primitive_count = refs.primitive_count;
+    wide.excluded = refs.excluded;
+    if (n_refs == 0) return wide;
+    wide.prim_ids.resize(n_refs);
+    Em em{tree, refs, info, wide.prim_ids.data()};
+    std::vector<std::uint32_t> stack;
+
+    if (em.emits_leaf(root)) {   // a single leaf: one wide node with one slot
+        WNode w;
+        w.clear();
+        w.set_bounds(0, em.box_of(root));
+        w.child[0] = 0;
+        w.count[0] = em.write_leaf(Raw{root, 0}, stack);
+        wide.nodes.push_back(w);
+    } else {
+        struct Pending {
+            Raw raw;              // raw inner node still to collapse
+            Index parent;         // top node whose slot `slot` points to it
+            int slot;
+            std::uint32_t depth;  // its wide depth
+        };
+        // The same fixed subtree count as collapse_to_wide, so the same node order.
+        constexpr std::size_t target = 256;
+        std::vector<WNode> top;
+        std::vector<Pending> queue;
+        std::size_t head = 0;
+        auto expand_top = [&](const Raw& b, std::uint32_t depth) {
+            const Index id = Index(top.size());
+            top.emplace_back();
+            em.fill(b, top.back(), stack, [&](int slot, const Raw& c) { queue.push_back({c, id, slot, depth + 1}); });
+            wide.depth = std::max(wide.depth, depth);
+            return id;
+        };
+        // Step 1: the top, breadth first and serially, until `target` subtrees are pending.
+        expand_top(Raw{root, 0}, 0);
+        while (head < queue.size() && queue.size() - head < target) {
+            const Pending p = queue[head++];
+            top[p.parent].child[p.slot] = expand_top(p.raw, p.depth);
+        }
+        // Step 2: each pending subtree by one task, into its own array. The task first emits its raw
+        // subtree as binary nodes into a task-local array (Emitter: the binary emission's own code and
+        // memory order, the references written to their final slots), small enough to stay in cache, then
+        // collapses that array as collapse_to_wide does (fill_wide): the same wide nodes, without the
+        // whole binary tree going through memory. Opening the raw tree directly here (as the top does)
+        // was slower than the two-step path: it walks the scattered facts in opening order, latency bound.
+        const std::size_t tasks = queue.size() - head;
+        std::vector<scratch_vector<WNode>> local(tasks);
+        std::vector<std::uint32_t> local_depth(tasks, 0);
+        const std::size_t binary_nodes = em.size_of(root);
+        std::atomic<bool> local_dedup{false};
+        ex.for_tasks(tasks, [&](std::size_t k) {
+            const Pending& p = queue[head + k];
+            scratch_vector<NodeT> bin_nodes(em.size_of(p.raw.id));
+            Emitter<NodeT, T> bin_em{tree, refs, info, bin_nodes, wide.prim_ids};
+            bin_em.emit_subtree({p.raw.id, {0, 1, p.raw.ref, 0}});   // no rebalancing: the tree is within max_depth
+            if (bin_em.deduplicated.load(std::memory_order_relaxed)) local_dedup.store(true, std::memory_order_relaxed);
+            const std::span<const NodeT> bin(bin_nodes);
+            scratch_vector<WNode>& out = local[k];
+            out.reserve(binary_nodes / (6 * tasks) + 8);
+            struct Todo {
+                Index bin, at;        // local binary node; its wide node's position in `out`
+                std::uint32_t depth;
+            };
+            std::vector<Todo> todo;
+            todo.reserve(std::size_t(W) * std::size_t(max_depth));
+            out.emplace_back();
+            todo.push_back({0, 0, p.depth});
+            std::uint32_t deepest = p.depth;
+            while (!todo.empty()) {
+                const Todo t = todo.back();
+                todo.pop_back();
+                deepest = std::max(deepest, t.depth);
+                WNode w;
+                fill_wide<W>(bin, t.bin, w, [&](int slot, Index c) {
+                    w.child[slot] = Index(out.size());   // local index, shifted when concatenated
+                    out.emplace_back();
+                    todo.push_back({c, w.child[slot], t.depth + 1});
+                });
+                out[t.at] = w;
+            }
+            local_depth[k] = deepest;
+        });
+        if (local_dedup.load()) em.deduplicated.store(true);
+        // Step 3: the arrays after the top, linked in, copied with shifted child indices.
+        std::vector<std::size_t> base(tasks);
+        std::size_t total = top.size();
+        for (std::size_t k = 0; k < tasks; ++k) {
+            base[k] = total;
+            total += local[k].size();
+            const Pending& p = queue[head + k];
+            top[p.parent].child[p.slot] = Index(base[k]);
+            wide.depth = std::max(wide.depth, local_depth[k]);
+        }
+        wide.nodes.resize(total);
+        std::copy(top.begin(), top.end(), wide.nodes.begin());
+        ex.for_tasks(tasks, [&](std::size_t k) {
+            const Index shift = Index(base[k]);
+            WNode* dst = wide.nodes.data() + base[k];
+            for (const WNode& w : local[k]) {
+                *dst = w;
+                for (int s = 0; s < W; ++s)
+                    if (dst->count[s] == 0 && !dst->empty_slot(s)) dst->child[s] += shift;
+                ++dst;
+            }
+        });
+    }
+    if (em.deduplicated.load()) compact_wide_references(wide);
+    // The leaf-order copy of the triangles (prim::copied).
+    if constexpr (Result::precomputed) {
+        wide.leaf_triangles.resize(wide.prim_ids.size());
+        ex.for_each(0, wide.prim_ids.size(), [&](std::size_t s) { wide.leaf_triangles[s] = tris[wide.prim_ids[s]]; });
+    } else {
+        (void)tris;
+    }
+    return wide;
+}
+
+} // namespace detail
+
+/// Turns a raw tree over `refs` straight into the W-wide layout (W = 4 or 8): the tree
+/// `make_wide<W>(emit_bvh<NodeT, Prim>(tree, refs, tris, cfg, ex), ex)` gives, bit for bit, without
+/// the binary nodes (see detail/emit_wide.hpp). For prim::copied the leaf triangles are copied from
+/// `tris`. O(n) work, parallel.
+template <int W, class NodeT, class Prim, class T, class Exec>
+wide_bvh_of<Bvh<NodeT, Prim>, W> emit_wide_bvh(const BinaryTree& tree, const References<T>& refs,
+                                               std::span<const Triangle<T>> tris, const LeafConfig& cfg, const Exec& ex) {
+    scratch_vector<detail::RawNodeInfo<T>> info(refs.size() == 0 ? 0 : tree.inner_count());
+    if (refs.size() != 0) detail::compute_node_info(tree, refs, cfg, std::span<detail::RawNodeInfo<T>>(info), ex);
+    return detail::emit_wide_from_info<W, NodeT, Prim>(tree, refs, tris, std::span<const detail::RawNodeInfo<T>>(info), ex);
+}
+
+} // namespace dynbvh
