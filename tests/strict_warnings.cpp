@@ -28,6 +28,9 @@
 #include <dynbvh/vec.hpp>
 #include <dynbvh/version.hpp>
 #include <dynbvh/wide.hpp>
+#include <dynbvh/wide_blocks.hpp>
+#include <dynbvh/dynamic.hpp>
+#include <dynbvh/two_level.hpp>
 
 #include <cstdint>
 #include <span>
@@ -95,6 +98,26 @@ double builders(const std::vector<Triangle<typename N::scalar_type>>& tris, cons
     return sum;
 }
 
+// SIMD triangle-block leaves (float only): both lane counts, both traversal policies.
+template <class Exec>
+double blocks(std::span<const Trianglef> tris, const Exec& ex) {
+    const Rayf ray{.org = {0, 0, 10}, .dir = {0, 0, -1}};
+    const auto bvh = ploc::build(tris, {.leaves = block_leaves}, ex);
+    const auto b8 = make_wide_blocks<8>(bvh, tris, ex);
+    const auto b84 = make_wide_blocks<8, 4>(bvh, tris, ex);
+    double sum = double(intersect<trace::robust>(b8, tris, ray).t) + double(occluded<trace::fast>(b8, tris, ray));
+    sum += double(intersect<trace::fast>(b84, tris, ray).t) + double(occluded<trace::robust>(b84, tris, ray));
+    return sum;
+}
+
+// The refit-or-rebuild policy and two-level scenes over the default builder.
+template <class Exec>
+double dynamic_scenes(std::span<const Trianglef> tris, const Exec& ex) {
+    Dynamic<builder::ploc, Node<>, prim::indexed, Exec> dyn({}, ex);
+    const FrameReport r = dyn.update(tris);
+    return r.sah_after + double(dyn.bvh().nodes.size());
+}
+
 template <class Exec>
 double all(const Exec& ex) {
     double sum = 0;
@@ -103,6 +126,8 @@ double all(const Exec& ex) {
     sum += builders<Node<double>, prim::indexed>({}, ex);
     sum += builders<Node<double>, prim::copied>({}, ex);
     sum += builders<Node<double, std::uint64_t>, prim::indexed>({}, ex);
+    sum += blocks(std::span<const Trianglef>(), ex);
+    sum += dynamic_scenes(std::span<const Trianglef>(), ex);
     return sum;
 }
 
