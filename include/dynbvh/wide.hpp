@@ -183,6 +183,37 @@ inline void fill_wide(std::span<const NodeT> bin, typename NodeT::index_type b,
     }
 }
 
+/// Step 3 of both wide conversions (collapse_to_wide below, emit_wide_bvh in detail/emit_wide.hpp):
+/// task k's local array goes after the top nodes, in task order, and is linked into the top slot that
+/// `pending[k]` names (`parent`, `slot`); the arrays are then copied in parallel with their inner
+/// children's indices shifted by their base. `depth` is raised to the deepest task's.
+template <int W, class WNode, class Pending, class Nodes, class Exec>
+void concatenate_wide(std::vector<WNode>& top, const Pending* pending, const std::vector<scratch_vector<WNode>>& local,
+                      const std::vector<std::uint32_t>& local_depth, Nodes& nodes, std::uint32_t& depth, const Exec& ex) {
+    using Index = typename WNode::index_type;
+    const std::size_t tasks = local.size();
+    std::vector<std::size_t> base(tasks);
+    std::size_t total = top.size();
+    for (std::size_t k = 0; k < tasks; ++k) {
+        base[k] = total;
+        total += local[k].size();
+        top[pending[k].parent].child[pending[k].slot] = Index(base[k]);
+        depth = std::max(depth, local_depth[k]);
+    }
+    nodes.resize(total);
+    std::copy(top.begin(), top.end(), nodes.begin());
+    ex.for_tasks(tasks, [&](std::size_t k) {
+        const Index shift = Index(base[k]);
+        WNode* dst = nodes.data() + base[k];
+        for (const WNode& w : local[k]) {
+            *dst = w;
+            for (std::size_t s = 0; s < std::size_t(W); ++s)
+                if (dst->count[s] == 0 && !dst->empty_slot(int(s))) dst->child[s] += shift;
+            ++dst;
+        }
+    });
+}
+
 /// The topology step of the conversion: fills wide.nodes and wide.depth from bvh.nodes. The top of
 /// the tree is collapsed serially, breadth first, until 256 subtrees are open; each is then collapsed
 /// depth first by one task into its own array, and the arrays are concatenated with their child
@@ -262,28 +293,8 @@ void collapse_to_wide(const Bvh<NodeT, Prim>& bvh, wide_bvh_of<Bvh<NodeT, Prim>,
         }
         local_depth[k] = deepest;
     });
-    // Step 3: place the arrays after the top and link them in; then copy them with shifted child indices.
-    std::vector<std::size_t> base(tasks);
-    std::size_t total = top.size();
-    for (std::size_t k = 0; k < tasks; ++k) {
-        base[k] = total;
-        total += local[k].size();
-        const Pending& p = queue[head + k];
-        top[p.parent].child[p.slot] = Index(base[k]);
-        wide.depth = std::max(wide.depth, local_depth[k]);
-    }
-    wide.nodes.resize(total);
-    std::copy(top.begin(), top.end(), wide.nodes.begin());
-    ex.for_tasks(tasks, [&](std::size_t k) {
-        const Index shift = Index(base[k]);
-        WNode* dst = wide.nodes.data() + base[k];
-        for (const WNode& w : local[k]) {
-            *dst = w;
-            for (int s = 0; s < W; ++s)
-                if (dst->count[s] == 0 && !dst->empty_slot(s)) dst->child[s] += shift;
-            ++dst;
-        }
-    });
+    // Step 3: the arrays after the top, linked in, copied with shifted child indices.
+    concatenate_wide<W>(top, queue.data() + head, local, local_depth, wide.nodes, wide.depth, ex);
 }
 
 

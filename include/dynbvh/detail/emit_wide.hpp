@@ -277,27 +277,7 @@ wide_bvh_of<Bvh<NodeT, Prim>, W> emit_wide_from_info(const BinaryTree& tree, con
         });
         if (local_dedup.load()) em.deduplicated.store(true);
         // Step 3: the arrays after the top, linked in, copied with shifted child indices.
-        std::vector<std::size_t> base(tasks);
-        std::size_t total = top.size();
-        for (std::size_t k = 0; k < tasks; ++k) {
-            base[k] = total;
-            total += local[k].size();
-            const Pending& p = queue[head + k];
-            top[p.parent].child[p.slot] = Index(base[k]);
-            wide.depth = std::max(wide.depth, local_depth[k]);
-        }
-        wide.nodes.resize(total);
-        std::copy(top.begin(), top.end(), wide.nodes.begin());
-        ex.for_tasks(tasks, [&](std::size_t k) {
-            const Index shift = Index(base[k]);
-            WNode* dst = wide.nodes.data() + base[k];
-            for (const WNode& w : local[k]) {
-                *dst = w;
-                for (int s = 0; s < W; ++s)
-                    if (dst->count[s] == 0 && !dst->empty_slot(s)) dst->child[s] += shift;
-                ++dst;
-            }
-        });
+        concatenate_wide<W>(top, queue.data() + head, local, local_depth, wide.nodes, wide.depth, ex);
     }
     if (em.deduplicated.load()) compact_wide_references(wide);
     // The leaf-order copy of the triangles (prim::copied).
