@@ -183,6 +183,38 @@ inline void fill_wide(std::span<const NodeT> bin, typename NodeT::index_type b,
     }
 }
 
+/// Step 2 of both wide conversions: collapses the binary subtree at `root` (of wide depth `depth`)
+/// depth first into `out`, its wide root at out[0] and child indices local to `out` (shifted when the
+/// arrays are concatenated). Returns the deepest wide depth reached.
+template <int W, class NodeT>
+std::uint32_t collapse_subtree(std::span<const NodeT> bin, typename NodeT::index_type root, std::uint32_t depth,
+                               scratch_vector<WideNode<typename NodeT::scalar_type, typename NodeT::index_type, W>>& out) {
+    using Index = typename NodeT::index_type;
+    using WNode = WideNode<typename NodeT::scalar_type, Index, W>;
+    struct Todo {
+        Index bin, at;           // binary node; its wide node's position in `out`
+        std::uint32_t depth;
+    };
+    std::vector<Todo> todo;
+    todo.reserve(std::size_t(W) * std::size_t(max_depth));
+    out.emplace_back();
+    todo.push_back({root, 0, depth});
+    std::uint32_t deepest = depth;
+    while (!todo.empty()) {
+        const Todo t = todo.back();
+        todo.pop_back();
+        deepest = std::max(deepest, t.depth);
+        WNode w;
+        fill_wide<W>(bin, t.bin, w, [&](int slot, Index c) {
+            w.child[slot] = Index(out.size());
+            out.emplace_back();
+            todo.push_back({c, w.child[slot], t.depth + 1});
+        });
+        out[t.at] = w;
+    }
+    return deepest;
+}
+
 /// Step 3 of both wide conversions (collapse_to_wide below, emit_wide_bvh in detail/emit_wide.hpp):
 /// task k's local array goes after the top nodes, in task order, and is linked into the top slot that
 /// `pending[k]` names (`parent`, `slot`); the arrays are then copied in parallel with their inner
@@ -270,28 +302,7 @@ void collapse_to_wide(const Bvh<NodeT, Prim>& bvh, wide_bvh_of<Bvh<NodeT, Prim>,
         scratch_vector<WNode>& out = local[k];
         // About three binary inner nodes per wide node: a guess that avoids most regrowth.
         out.reserve(bin.size() / (6 * tasks) + 8);
-        struct Todo {
-            Index bin, at;           // binary node; its wide node's position in `out`
-            std::uint32_t depth;
-        };
-        std::vector<Todo> todo;
-        todo.reserve(std::size_t(W) * std::size_t(max_depth));
-        out.emplace_back();
-        todo.push_back({p.bin, 0, p.depth});
-        std::uint32_t deepest = p.depth;
-        while (!todo.empty()) {
-            const Todo t = todo.back();
-            todo.pop_back();
-            deepest = std::max(deepest, t.depth);
-            WNode w;
-            fill_wide<W>(bin, t.bin, w, [&](int slot, Index c) {
-                w.child[slot] = Index(out.size());   // local index, shifted when concatenated
-                out.emplace_back();
-                todo.push_back({c, w.child[slot], t.depth + 1});
-            });
-            out[t.at] = w;
-        }
-        local_depth[k] = deepest;
+        local_depth[k] = collapse_subtree<W>(bin, p.bin, p.depth, out);
     });
     // Step 3: the arrays after the top, linked in, copied with shifted child indices.
     concatenate_wide<W>(top, queue.data() + head, local, local_depth, wide.nodes, wide.depth, ex);

@@ -252,28 +252,7 @@ wide_bvh_of<Bvh<NodeT, Prim>, W> emit_wide_from_info(const BinaryTree& tree, con
             const std::span<const NodeT> bin(bin_nodes);
             scratch_vector<WNode>& out = local[k];
             out.reserve(binary_nodes / (6 * tasks) + 8);
-            struct Todo {
-                Index bin, at;        // local binary node; its wide node's position in `out`
-                std::uint32_t depth;
-            };
-            std::vector<Todo> todo;
-            todo.reserve(std::size_t(W) * std::size_t(max_depth));
-            out.emplace_back();
-            todo.push_back({0, 0, p.depth});
-            std::uint32_t deepest = p.depth;
-            while (!todo.empty()) {
-                const Todo t = todo.back();
-                todo.pop_back();
-                deepest = std::max(deepest, t.depth);
-                WNode w;
-                fill_wide<W>(bin, t.bin, w, [&](int slot, Index c) {
-                    w.child[slot] = Index(out.size());   // local index, shifted when concatenated
-                    out.emplace_back();
-                    todo.push_back({c, w.child[slot], t.depth + 1});
-                });
-                out[t.at] = w;
-            }
-            local_depth[k] = deepest;
+            local_depth[k] = collapse_subtree<W>(bin, Index(0), p.depth, out);
         });
         if (local_dedup.load()) em.deduplicated.store(true);
         // Step 3: the arrays after the top, linked in, copied with shifted child indices.
