@@ -19,15 +19,16 @@ bool same_bits(T a, T b) {
     else return std::bit_cast<std::uint64_t>(a) == std::bit_cast<std::uint64_t>(b);
 }
 
-/// Same closest hit: both miss, or the same t to the bit and the same triangle with the same (u, v) to
-/// the bit, or an exact tie (h's triangle is hit by `r` at exactly that t with triangle test Tri).
+/// Same closest hit: both miss, or the same t, u, v to the bit and the same triangle. (Exact ties go to
+/// the larger index in every traversal and in brute force, so the triangle must match too.) `tris` and
+/// `r` name the ray and scene in failure messages of callers; Tri is kept for their call sites.
 template <class Tri, class T>
 bool same_hit(const Hit<T>& h, const Hit<T>& e, std::span<const Triangle<T>> tris, const Ray<T>& r) {
+    (void)tris;
+    (void)r;
     if (bool(h) != bool(e)) return false;
     if (!h) return true;
-    if (!same_bits(h.t, e.t)) return false;
-    if (h.prim == e.prim) return same_bits(h.u, e.u) && same_bits(h.v, e.v);
-    return h.prim < tris.size() && same_bits(intersect_triangle<Tri>(tris[h.prim], r).t, h.t);
+    return same_bits(h.t, e.t) && h.prim == e.prim && same_bits(h.u, e.u) && same_bits(h.v, e.v);
 }
 
 /// "org (x, y, z) dir (x, y, z) [tmin, tmax]" with 9 digits.

@@ -1,6 +1,6 @@
 // SIMD triangle blocks (detail/triangle_block.hpp): packing keeps every reference once in slot order;
 // the block tests return exactly what the scalar per-triangle loop (traverse.hpp's test_leaf) returns -
-// hit/miss, t, u, v to the bit, the user's triangle, the later slot at an exact tie, the first hit of
+// hit/miss, t, u, v to the bit, the user's triangle, the larger index at an exact tie, the first hit of
 // an any-hit query - for tri::watertight and tri::moller_trumbore, 4- and 8-lane blocks, on adversarial
 // triangles: rays through edges and vertices, zero-area and edge-on triangles, huge (1e30), tiny
 // (1e-30) and subnormal coordinates, far from the origin (1e7), NaN / infinite vertices, partial
@@ -206,15 +206,14 @@ void compare(const Scene& s, const Packed<L>& p, const std::vector<Rayf>& rays, 
         };
         // closest hit over all leaves
         float tmax_s = ray.tmax, tbox_s = ray.tmax, tmax_b = ray.tmax, tbox_b = ray.tmax;
-        std::size_t best_slot = ~std::size_t(0);
+        std::uint32_t want = invalid_prim;   // test_leaf's closest triangle
         std::uint32_t best_prim = invalid_prim;
         Hitf hs, hb;
         for (std::size_t j = 0; j < s.leaves.size(); ++j) {
             const auto& leaf = s.leaves[j];
-            detail::test_leaf<Tri, false, true>(pt, tris, ids, leaf.first, leaf.first + leaf.count, 1.0f, tmax_s, tbox_s, best_slot, hs);
+            detail::test_leaf<Tri, false, true>(pt, tris, ids, leaf.first, leaf.first + leaf.count, 1.0f, tmax_s, tbox_s, want, hs);
             bt.template test<false>(p.blocks.data(), p.first[j], p.first[j + 1], 1.0f, tmax_b, tbox_b, best_prim, hb);
         }
-        const std::uint32_t want = best_slot == ~std::size_t(0) ? invalid_prim : ids[best_slot];
         if (want != best_prim || !same_bits(tmax_s, tmax_b) || !same_bits(tbox_s, tbox_b) ||
             (want != invalid_prim && (!same_bits(hs.t, hb.t) || !same_bits(hs.u, hb.u) || !same_bits(hs.v, hb.v))))
             fail("closest hit differs: prim " + std::to_string(best_prim) + " vs " + std::to_string(want));
@@ -223,7 +222,7 @@ void compare(const Scene& s, const Packed<L>& p, const std::vector<Rayf>& rays, 
         {
             Hitf as, ab;
             float t1 = ray.tmax, b1 = ray.tmax, t2 = ray.tmax, b2 = ray.tmax;
-            std::size_t bs = 0;
+            std::uint32_t bs = 0;
             std::uint32_t bp = 0;
             bool rs = false, rb = false;
             for (std::size_t j = 0; j < s.leaves.size() && !rs; ++j)
@@ -233,17 +232,16 @@ void compare(const Scene& s, const Packed<L>& p, const std::vector<Rayf>& rays, 
             if (rs != rb || (rs && (as.prim != ab.prim || !same_bits(as.t, ab.t) || !same_bits(as.u, ab.u) || !same_bits(as.v, ab.v))))
                 fail("any hit differs");
         }
-        // each leaf alone with tmax = the closest hit's t (ties at exactly that t: the later slot wins)
+        // each leaf alone with tmax = the closest hit's t (ties at exactly that t: the larger index wins)
         if (want != invalid_prim)
             for (std::size_t j = 0; j < s.leaves.size(); ++j) {
                 const auto& leaf = s.leaves[j];
                 float ts = hs.t, bs = hs.t, tb = hs.t, bb = hs.t;
-                std::size_t slot = ~std::size_t(0);
+                std::uint32_t w = invalid_prim;
                 std::uint32_t prim = invalid_prim;
                 Hitf h1, h2;
-                detail::test_leaf<Tri, false, true>(pt, tris, ids, leaf.first, leaf.first + leaf.count, 0.5f, ts, bs, slot, h1);
+                detail::test_leaf<Tri, false, true>(pt, tris, ids, leaf.first, leaf.first + leaf.count, 0.5f, ts, bs, w, h1);
                 bt.template test<false>(p.blocks.data(), p.first[j], p.first[j + 1], 0.5f, tb, bb, prim, h2);
-                const std::uint32_t w = slot == ~std::size_t(0) ? invalid_prim : ids[slot];
                 if (w != prim || !same_bits(ts, tb) || !same_bits(bs, bb) ||
                     (w != invalid_prim && (!same_bits(h1.u, h2.u) || !same_bits(h1.v, h2.v))))
                     fail("leaf " + std::to_string(j) + " at tmax = closest t differs");

@@ -32,6 +32,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <limits>
 #include <type_traits>
 #include <utility>
@@ -111,6 +112,15 @@ inline int direction_scale_exponent(const Vec3<T>& dir) noexcept {
         hi = std::max(hi, e);
     }
     return std::max(0, std::min(lowest - lo, highest - hi));
+}
+
+/// The tie rule of every closest-hit query (binary, wide, block leaves, packets, brute force): a hit of
+/// triangle `prim` at t <= tmax (the closest so far, of triangle `best`, or invalid_prim for none)
+/// replaces it when it is strictly closer, or at exactly the same t when its index is larger. So the
+/// answer is the hit of smallest t and, among those, of largest index, whatever the visit order
+/// (brute force in input order gives the same). invalid_prim + 1 wraps to 0: any prim beats "none".
+DYNBVH_ALWAYS_INLINE constexpr bool replaces_hit(auto t, auto tmax, std::uint32_t prim, std::uint32_t best) noexcept {
+    return t < tmax || prim + 1u > best + 1u;
 }
 
 template <class T>

@@ -17,8 +17,10 @@
 /// empty [tmin, tmax]) hit nothing.
 ///
 /// Exactness: trace::robust is built so that `intersect` returns what `brute_force_intersect` returns
-/// (same t to the bit; the same triangle, or another hit at exactly the same t): the box test is
-/// conservative by a margin larger than the error of the triangle test's t. tests/test_traverse.cpp
+/// (same t, u, v to the bit and the same triangle): the box test is conservative by a margin larger
+/// than the error of the triangle test's t, and exact ties (two triangles hit at exactly the same t)
+/// go to the larger triangle index whatever the visit order (detail::replaces_hit; boxes entered at
+/// exactly the current tmax are still visited). tests/test_traverse.cpp
 /// checks this on rays through vertices and edges, axis-parallel rays with +-0 components and grazing
 /// rays over overlapping coplanar triangles far from the origin (an empirical check, not a proof).
 /// box::fast may lose hits that only graze a box.
@@ -62,34 +64,40 @@ struct StackEntry {
 };
 
 /// Tests the triangles of leaf slots [first, end) (slot i is triangle ids[i], or leaf_tris[i] for
-/// prim::copied trees). Each hit narrows tmax and tbox = tmax * t_scale (the box tests' units) and is
-/// kept in `hit`/`best_slot`; with AnyHit the first hit sets hit.prim and returns true (stop).
-/// Shared by the binary and the wide traversal (wide.hpp).
+/// prim::copied trees). Each hit that replaces the closest so far (replaces_hit) narrows tmax and
+/// tbox = tmax * t_scale (the box tests' units) and is kept in `hit` and `best_prim`; with AnyHit the
+/// first hit sets hit.prim and returns true (stop). Shared by the binary and the wide traversal.
 template <class Tri, bool AnyHit, bool Precomputed, class T, class Index>
 DYNBVH_ALWAYS_INLINE bool test_leaf(const typename Tri::template prepared<T>& pt, const Triangle<T>* leaf_tris,
                                     const Index* ids, std::size_t first, std::size_t end, T t_scale, T& tmax, T& tbox,
-                                    std::size_t& best_slot, Hit<T>& hit) {
+                                    std::uint32_t& best_prim, Hit<T>& hit) {
     for (std::size_t slot = first; slot < end; ++slot) {
         const Triangle<T>& tri = Precomputed ? leaf_tris[slot] : leaf_tris[ids[slot]];
         T t, u, v;
         if (Tri::test(pt, tri, tmax, t, u, v)) {
-            hit.t = t;
-            hit.u = u;
-            hit.v = v;
+            const std::uint32_t prim = static_cast<std::uint32_t>(ids[slot]);
             if constexpr (AnyHit) {
-                hit.prim = static_cast<std::uint32_t>(ids[slot]);
+                hit.t = t;
+                hit.u = u;
+                hit.v = v;
+                hit.prim = prim;
                 return true;
             } else {
+                if (!replaces_hit(t, tmax, prim, best_prim)) continue;   // an exact tie with a larger index
+                hit.t = t;
+                hit.u = u;
+                hit.v = v;
                 tmax = t;
                 tbox = t * t_scale;
-                best_slot = slot;
+                best_prim = prim;
             }
         }
     }
     return false;
 }
 
-/// Pops stack entries until one whose box can still hold a hit closer than `tbox` (box units) and
+/// Pops stack entries until one whose box can still hold a hit at or before `tbox` (box units: an
+/// entry is skipped only when it starts strictly farther, so a tie at exactly tmax is still found) and
 /// stores it in `next`; false when the stack is empty (the traversal is done). Shared by the binary
 /// and the wide traversal loop.
 template <class Box, class Entry, class T>
@@ -140,7 +148,7 @@ bool traverse_octant(const Bvh<NodeT, Prim>& bvh, std::span<const Triangle<typen
     const Triangle<T>* const leaf_tris = Bvh<NodeT, Prim>::precomputed ? bvh.leaf_triangles.data() : tris.data();
 
     std::size_t sp = 0;
-    std::size_t best_slot = ~std::size_t(0);
+    std::uint32_t best_prim = invalid_prim;
     Index cur = 0;
     T tbox = tmax * pb.t_scale;  // tmax in the box test's units (see box::robust)
     for (;;) {
@@ -165,13 +173,13 @@ bool traverse_octant(const Bvh<NodeT, Prim>& bvh, std::span<const Triangle<typen
             }
         } else {
             if (test_leaf<Tri, AnyHit, Bvh<NodeT, Prim>::precomputed>(pt, leaf_tris, ids, n.index, std::size_t(n.index) + n.count,
-                                                                    T(pb.t_scale), tmax, tbox, best_slot, hit))
+                                                                    T(pb.t_scale), tmax, tbox, best_prim, hit))
                 return true;
         }
         // Pop the next subtree that can still hold a closer hit.
         StackEntry<Index, T> next;
         if (!pop_closer<Box>(stack, sp, tbox, next)) {
-            if (best_slot != ~std::size_t(0)) hit.prim = static_cast<std::uint32_t>(ids[best_slot]);
+            hit.prim = best_prim;
             return true;
         }
         cur = next.node;
@@ -228,7 +236,8 @@ bool occluded(const Bvh<NodeT, Prim>& bvh, std::span<const Triangle<typename Nod
 }
 
 /// Reference closest hit: every finite triangle is tested with `Policy`'s triangle test (O(n) per ray).
-/// Same interval and tie rule as `intersect` (a later triangle at exactly the same t replaces the earlier).
+/// Same interval and tie rule as `intersect` (at exactly the same t the larger triangle index wins:
+/// here a later triangle replaces the earlier).
 /// Triangles with a NaN or infinite vertex are skipped, as the builders exclude them.
 template <class Policy = trace::robust, class T>
 Hit<T> brute_force_intersect(std::type_identity_t<std::span<const Triangle<T>>> tris, const Ray<T>& ray) {
@@ -240,7 +249,7 @@ Hit<T> brute_force_intersect(std::type_identity_t<std::span<const Triangle<T>>> 
     for (std::size_t i = 0; i < tris.size(); ++i) {
         if (!tris[i].is_finite()) continue;
         T t, u, v;
-        if (Tri::test(pt, tris[i], tmax, t, u, v)) {
+        if (Tri::test(pt, tris[i], tmax, t, u, v)) {   // (t == tmax: i is larger, so it wins the tie)
             tmax = t;
             hit = {t, u, v, static_cast<std::uint32_t>(i)};
         }

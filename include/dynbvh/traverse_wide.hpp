@@ -18,7 +18,7 @@
 /// bit for bit, so the traversal is the same as for index leaves.
 ///
 /// Exactness: as in traverse.hpp; `intersect(wide, ...)` returns what `brute_force_intersect` returns
-/// (t to the bit; an exact tie may name another triangle). Hit children are visited nearest first; the
+/// (t, u, v to the bit and the same triangle: an exact tie goes to the larger index, detail::replaces_hit). Hit children are visited nearest first; the
 /// others go on a fixed stack of W - 1 entries per wide level with their entry distance and are skipped
 /// once a closer hit is known. A tree deeper than max_depth, or one whose `depth` is wrong, is traced
 /// with a heap stack that cannot overflow.
@@ -173,12 +173,22 @@ struct WideStackEntry {
 /// The wide traversal loop for one direction octant; same contract as traverse_octant (traverse.hpp).
 /// Box distances are in box::robust's units (t * t_scale). The triangle test's per-ray setup is
 /// done when the first leaf is reached: most primary rays of an open scene never reach one.
+/// It starts at node `start` (or at the leaf slot (start, start_count) when start_count > 0) with
+/// the closest hit so far `hit` (t = tmax0, triangle best0; invalid_prim and ray.tmax for a fresh
+/// query), so that a packet traversal (packet.hpp) can finish a subtree ray by ray.
+// GCC cannot see that the lazily made triangle setup (`pt`, guarded by have_pt) is made before use
+// once the start slot is a run-time argument: a false -Wmaybe-uninitialized.
+#if defined(__GNUC__) && !defined(__clang__)
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
+#endif
 template <class Policy, bool AnyHit, int Oct, class WN, class P, class S = typename WN::scalar_type,
           class I = typename WN::index_type, int W = WN::width>
 bool wide_traverse_octant(const WideBvh<WN, P>& bvh, std::span<const Triangle<S>> tris, const Ray<S>& ray,
                           const S t_scale,
                           const WideBoxTest<typename Policy::box_test, S, W> wb, Hit<S>& hit,
-                          WideStackEntry<I, S>* const stack, const std::size_t cap) {
+                          WideStackEntry<I, S>* const stack, const std::size_t cap, const I start, const I start_count,
+                          const S tmax0, const std::uint32_t best0) {
     using Box = typename Policy::box_test;
     using Tri = typename Policy::triangle_test;
     using Entry = WideStackEntry<I, S>;
@@ -199,12 +209,11 @@ bool wide_traverse_octant(const WideBvh<WN, P>& bvh, std::span<const Triangle<S>
     } pt;
     bool have_pt = false;
 
-    S tmax = ray.tmax;
+    S tmax = tmax0;
     S tbox = tmax * t_scale;   // tmax in box units
     std::size_t sp = 0;
-    std::size_t best_slot = ~std::size_t(0);
-    std::uint32_t best_prim = invalid_prim;   // (block leaves name the user's triangle directly)
-    I cur = 0, cur_count = 0;
+    std::uint32_t best_prim = best0;
+    I cur = start, cur_count = start_count;
     for (;;) {
         if (cur_count == 0) {
             const WN& n = nodes[cur];
@@ -252,21 +261,24 @@ bool wide_traverse_octant(const WideBvh<WN, P>& bvh, std::span<const Triangle<S>
                     return true;
             } else {
                 if (test_leaf<Tri, AnyHit, WB::precomputed>(pt.value, leaf_tris, ids, cur, std::size_t(cur) + cur_count, t_scale,
-                                                            tmax, tbox, best_slot, hit))
+                                                            tmax, tbox, best_prim, hit))
                     return true;
             }
         }
         // Pop the next subtree that can still hold a closer hit.
         Entry next;
         if (!pop_closer<Box>(stack, sp, tbox, next)) {
-            if constexpr (BL > 0) hit.prim = best_prim;
-            else if (best_slot != ~std::size_t(0)) hit.prim = static_cast<std::uint32_t>(ids[best_slot]);
+            hit.prim = best_prim;
             return true;
         }
         cur = next.child;
         cur_count = next.count;
     }
 }
+
+#if defined(__GNUC__) && !defined(__clang__)
+#pragma GCC diagnostic pop
+#endif
 
 /// Stack and octant dispatch around wide_traverse_octant for a prepared ray.
 template <class Policy, bool AnyHit, class WN, class P, class S = typename WN::scalar_type, class I = typename WN::index_type,
@@ -276,7 +288,8 @@ Hit<S> wide_run(const WideBvh<WN, P>& bvh, std::span<const Triangle<S>> tris, co
     using Entry = WideStackEntry<I, S>;
     auto run = [&](Entry* stack, std::size_t cap, Hit<S>& hit) {
         return dispatch_octant(octant, [&](auto oct) {
-            return wide_traverse_octant<Policy, AnyHit, decltype(oct)::value>(bvh, tris, ray, t_scale, wb, hit, stack, cap);
+            return wide_traverse_octant<Policy, AnyHit, decltype(oct)::value>(bvh, tris, ray, t_scale, wb, hit, stack, cap, I(0),
+                                                                              I(0), ray.tmax, invalid_prim);
         });
     };
     // At most W - 1 entries per wide level: wide depth < binary depth <= max_depth.

@@ -17,10 +17,10 @@
 /// tri::watertight::test rejects by its (exact) sign test whatever tmax is. Every other valid lane goes,
 /// in slot order and with the current tmax, through tri::watertight::test on that lane's triangle
 /// (rebuilt from the block's floats, which are copies of the user's floats). So the result is the
-/// scalar loop's, bit for bit: same hits, t, u, v, the later slot winning an exact tie, the same
-/// first hit for any-hit queries.
+/// scalar loop's, bit for bit: same hits, t, u, v, the larger index winning an exact tie
+/// (replaces_hit), the same first hit for any-hit queries.
 ///
-/// The bound (see `BlockTest<tri::watertight, L>::candidates`), u = 2^-24, eta = 2^-150:
+/// The bound (see `WatertightFilter`), u = 2^-24, eta = 2^-150:
 /// X = p[kx] - org[kx] etc. are the scalar test's differences bit for bit (one rounding each). The
 /// sheared x = X - sx Z is within 3u (|X| + |sx Z|) + 2 eta of the scalar test's value whether either
 /// side contracts it into an FMA or not (each is within 2u resp. u of the exact X - sx Z), and
@@ -169,6 +169,8 @@ protected:
                                       std::uint32_t& best_prim, Hit<float>& hit) const {
         float t, u, v;
         if (!Tri::test(pt, b.triangle(k), tmax, t, u, v)) return false;
+        if constexpr (!AnyHit)
+            if (!replaces_hit(t, tmax, b.prim[k], best_prim)) return false;
         hit.t = t;
         hit.u = u;
         hit.v = v;
@@ -185,6 +187,57 @@ protected:
 };
 
 #if defined(DYNBVH_SSE)
+
+/// The SIMD float filter of tri::watertight on V::n (ray, triangle) pairs, one per lane: each lane
+/// holds one vertex's X, Y, Z = vertex - origin (the scalar test's differences: one rounding each) and
+/// the ray's shear sx, sy. `rejects` gives the lanes whose edge functions certainly have strictly
+/// opposite signs (see the file comment for the bound), which the scalar test misses whatever tmax.
+/// Shared by the block test (lanes = triangles) and the packet test (packet.hpp: lanes = rays).
+template <class V>
+struct WatertightFilter {
+    using R = typename V::reg;
+    /// One vertex: sheared x, y (the scalar test's operations), M = |X| + |Y| + |Z|, P = |x| + |y|, the
+    /// shear uncertainty D = 4u M + 4 eta, Rb = 4u P + D, Q = P + 2D.
+    struct Sheared {
+        R x, y, M, P, D, Rb, Q;
+    };
+    static DYNBVH_ALWAYS_INLINE Sheared shear(R X, R Y, R Z, R sx, R sy) noexcept {
+        constexpr float u = std::numeric_limits<float>::epsilon() * 0.5f;
+        const R k4u = V::set1(4.0f * u);                              // 4u: covers 3u(1 + u)^k
+        const R eta4 = V::set1(4.0f * std::numeric_limits<float>::denorm_min() * 0.5f);   // 4 eta = 2^-148
+        Sheared s;
+        s.x = V::sub(X, V::mul(sx, Z));
+        s.y = V::sub(Y, V::mul(sy, Z));
+        s.M = V::add(V::add(V::abs(X), V::abs(Y)), V::abs(Z));
+        s.P = V::add(V::abs(s.x), V::abs(s.y));
+        s.D = V::madd(k4u, s.M, eta4);
+        s.Rb = V::madd(k4u, s.P, s.D);
+        s.Q = V::add(s.P, V::add(s.D, s.D));
+        return s;
+    }
+    /// Lane mask (all bits of a lane set) of the pairs certainly missed.
+    static DYNBVH_ALWAYS_INLINE R rejects(const Sheared& a, const Sheared& bb, const Sheared& c) noexcept {
+        const R tau = V::set1(std::numeric_limits<float>::min());     // covers the eta terms and E's own underflow
+        const R limit = V::set1(0x1p60f);                             // below it nothing overflows
+        const R msum = V::add(V::add(a.M, bb.M), c.M);
+        // Step 3: edge functions U (c, b), V (a, c), W (b, a) in float, each with its bound
+        // E(c, b) = Pc (4u Pb + Db) + Dc (Pb + 2 Db) + FLT_MIN.
+        const R fu = V::sub(V::mul(c.x, bb.y), V::mul(c.y, bb.x));
+        const R fv = V::sub(V::mul(a.x, c.y), V::mul(a.y, c.x));
+        const R fw = V::sub(V::mul(bb.x, a.y), V::mul(bb.y, a.x));
+        const R eu = V::add(V::madd(c.P, bb.Rb, V::mul(c.D, bb.Q)), tau);
+        const R ev = V::add(V::madd(a.P, c.Rb, V::mul(a.D, c.Q)), tau);
+        const R ew = V::add(V::madd(bb.P, a.Rb, V::mul(bb.D, a.Q)), tau);
+        // Step 4: certainly positive / negative (NaN: neither); reject on two opposite signs.
+        const R pu = V::gt(fu, eu), nu = V::lt(fu, V::neg(eu));
+        const R pv = V::gt(fv, ev), nv = V::lt(fv, V::neg(ev));
+        const R pw = V::gt(fw, ew), nw = V::lt(fw, V::neg(ew));
+        const R rej = V::bor(V::bor(V::band(pu, V::bor(nv, nw)), V::band(nu, V::bor(pv, pw))),
+                             V::bor(V::band(pv, nw), V::band(nv, pw)));
+        const R ok = V::lt(msum, limit);   // false for NaN and infinity
+        return V::band(rej, ok);
+    }
+};
 
 /// tri::watertight on a block: the SIMD float filter, then the scalar test on the lanes it keeps
 /// (see the file comment for the exactness argument and the bound).
@@ -208,32 +261,17 @@ struct BlockTest<tri::watertight, L> {
 
     /// Valid lanes the filter cannot reject (the scalar test misses every other lane, whatever tmax).
     DYNBVH_ALWAYS_INLINE unsigned candidates(const TriangleBlock<L>& b) const noexcept {
-        constexpr float u = std::numeric_limits<float>::epsilon() * 0.5f;
-        const R k4u = V::set1(4.0f * u);                              // 4u: covers 3u(1 + u)^k
-        const R eta4 = V::set1(4.0f * std::numeric_limits<float>::denorm_min() * 0.5f);   // 4 eta = 2^-148
-        const R tau = V::set1(std::numeric_limits<float>::min());     // covers the eta terms and E's own underflow
-        const R limit = V::set1(0x1p60f);                             // below it nothing overflows
+        using F = WatertightFilter<V>;
         unsigned rejected = 0;
         for (int h = 0; h < L; h += V::n) {
             // (one call per vertex, not a loop over arrays: GCC keeps such arrays on the stack)
-            const Sheared a = shear(b, 0, h, k4u, eta4), bb = shear(b, 1, h, k4u, eta4), c = shear(b, 2, h, k4u, eta4);
-            const R msum = V::add(V::add(a.M, bb.M), c.M);
-            // Step 3: edge functions U (c, b), V (a, c), W (b, a) in float, each with its bound
-            // E(c, b) = Pc (4u Pb + Db) + Dc (Pb + 2 Db) + FLT_MIN.
-            const R fu = V::sub(V::mul(c.x, bb.y), V::mul(c.y, bb.x));
-            const R fv = V::sub(V::mul(a.x, c.y), V::mul(a.y, c.x));
-            const R fw = V::sub(V::mul(bb.x, a.y), V::mul(bb.y, a.x));
-            const R eu = V::add(V::madd(c.P, bb.Rb, V::mul(c.D, bb.Q)), tau);
-            const R ev = V::add(V::madd(a.P, c.Rb, V::mul(a.D, c.Q)), tau);
-            const R ew = V::add(V::madd(bb.P, a.Rb, V::mul(bb.D, a.Q)), tau);
-            // Step 4: certainly positive / negative (NaN: neither); reject on two opposite signs.
-            const R pu = V::gt(fu, eu), nu = V::lt(fu, V::neg(eu));
-            const R pv = V::gt(fv, ev), nv = V::lt(fv, V::neg(ev));
-            const R pw = V::gt(fw, ew), nw = V::lt(fw, V::neg(ew));
-            const R rej = V::bor(V::bor(V::band(pu, V::bor(nv, nw)), V::band(nu, V::bor(pv, pw))),
-                                 V::bor(V::band(pv, nw), V::band(nv, pw)));
-            const R ok = V::lt(msum, limit);   // false for NaN and infinity
-            rejected |= V::bits(V::band(rej, ok)) << h;
+            const auto va = F::shear(V::sub(V::load(&b.v[0][kx_][h]), ox_), V::sub(V::load(&b.v[0][ky_][h]), oy_),
+                                     V::sub(V::load(&b.v[0][kz_][h]), oz_), sx_, sy_);
+            const auto vb = F::shear(V::sub(V::load(&b.v[1][kx_][h]), ox_), V::sub(V::load(&b.v[1][ky_][h]), oy_),
+                                     V::sub(V::load(&b.v[1][kz_][h]), oz_), sx_, sy_);
+            const auto vc = F::shear(V::sub(V::load(&b.v[2][kx_][h]), ox_), V::sub(V::load(&b.v[2][ky_][h]), oy_),
+                                     V::sub(V::load(&b.v[2][kz_][h]), oz_), sx_, sy_);
+            rejected |= V::bits(F::rejects(va, vb, vc)) << h;
         }
         return b.valid_mask() & ~rejected;
     }
@@ -247,6 +285,8 @@ struct BlockTest<tri::watertight, L> {
                 const int k = std::countr_zero(m);
                 float t, u, v;
                 if (!tri::watertight::test(pt, b.triangle(k), tmax, t, u, v)) continue;
+                if constexpr (!AnyHit)
+                    if (!replaces_hit(t, tmax, b.prim[k], best_prim)) continue;
                 hit.t = t;
                 hit.u = u;
                 hit.v = v;
@@ -264,26 +304,6 @@ struct BlockTest<tri::watertight, L> {
     }
 
 private:
-    /// One vertex: sheared x, y (the scalar test's operations), M = |X| + |Y| + |Z|, P = |x| + |y|, the
-    /// shear uncertainty D = 4u M + 4 eta, Rb = 4u P + D, Q = P + 2D.
-    struct Sheared {
-        R x, y, M, P, D, Rb, Q;
-    };
-    DYNBVH_ALWAYS_INLINE Sheared shear(const TriangleBlock<L>& b, int i, int h, R k4u, R eta4) const noexcept {
-        Sheared s;
-        const R X = V::sub(V::load(&b.v[i][kx_][h]), ox_);
-        const R Y = V::sub(V::load(&b.v[i][ky_][h]), oy_);
-        const R Z = V::sub(V::load(&b.v[i][kz_][h]), oz_);
-        s.x = V::sub(X, V::mul(sx_, Z));
-        s.y = V::sub(Y, V::mul(sy_, Z));
-        s.M = V::add(V::add(V::abs(X), V::abs(Y)), V::abs(Z));
-        s.P = V::add(V::abs(s.x), V::abs(s.y));
-        s.D = V::madd(k4u, s.M, eta4);
-        s.Rb = V::madd(k4u, s.P, s.D);
-        s.Q = V::add(s.P, V::add(s.D, s.D));
-        return s;
-    }
-
     int kx_, ky_, kz_;
     R ox_, oy_, oz_, sx_, sy_;
 };
@@ -347,6 +367,8 @@ struct BlockTest<tri::moller_trumbore, L> {
             for (unsigned m = hits(b, tmax, t, u, v); m != 0; m &= m - 1) {
                 const int k = std::countr_zero(m);
                 if (!(t[k] <= tmax)) continue;   // an earlier lane of this block came closer
+                if constexpr (!AnyHit)
+                    if (!replaces_hit(t[k] + 0.0f, tmax, b.prim[k], best_prim)) continue;
                 hit.t = t[k] + 0.0f;             // -0 -> +0, as the scalar test
                 hit.u = u[k];
                 hit.v = v[k];

@@ -1,0 +1,681 @@
+// SPDX-License-Identifier: MIT
+/// @file packet.hpp
+/// Closest-hit and any-hit queries of packets of 8 or 16 rays against a `WideBvh` (Wald, Slusallek,
+/// Benthin, Wagner 2001, "Interactive Rendering with Coherent Ray Tracing"; Benthin, Wald, Woop, Ernst,
+/// Mark 2012, "Combining Single and Packet-Ray Tracing for Arbitrary Ray Distributions on the Intel MIC
+/// Architecture"):
+/// @code
+///   dynbvh::RayPacket<float, 8> p;                       // e.g. a 4x2 tile of camera rays
+///   for (int k = 0; k < 8; ++k) p.set(k, camera_ray(k));
+///   auto hits = dynbvh::intersect(wide, tris, p);          // lane k == intersect(wide, tris, p.ray(k))
+///   std::uint32_t occ = dynbvh::occluded(wide, tris, p, 0x0f);   // lanes 0..3 only
+/// @endcode
+///
+/// Contract: every active lane (bit k of `active` set) gets, bit for bit, what the single-ray query on
+/// the same tree gives its ray (traverse_wide.hpp): t, u, v, prim, hit or miss, for every ray, NaN and
+/// empty intervals included. Inactive lanes get the miss value (Hit{}: t = +inf, u = v = 0, prim =
+/// invalid_prim) from `intersect` and a 0 bit from `occluded`. This holds because the single-ray answer
+/// does not depend on the order in which boxes are visited: box::robust never culls a box holding the
+/// closest hit, and an exact tie goes to the larger triangle index (detail::replaces_hit).
+///
+/// Traversal (float trees, box::robust, with SSE; detail::PacketTraversal): the active rays are grouped
+/// by direction octant (and, for tri::watertight, dominant axis); a group of at least
+/// `PacketConfig::min_rays` rays is traced as one packet, the others ray by ray. At a node each
+/// non-empty child box is tested against every ray of the packet at once (SIMD across rays, AVX 8 lanes
+/// per step where compiled in, else SSE 4; the same operations as box::robust), giving a ray mask and
+/// entry distances per child; hit children are visited nearest first (by the packet's nearest entry),
+/// the others pushed with their masks and per-ray entries, and skipped ray by ray once those rays know
+/// a closer hit. Block leaves (prim::blocks) test each triangle against all rays of the packet at once:
+/// tri::watertight with the SIMD float filter of the block test (detail::WatertightFilter, the same
+/// forward error bound) and the exact scalar test on each kept ray with that ray's tmax;
+/// tri::moller_trumbore with the scalar test's operations lane by lane. Index and copied leaves test
+/// ray by ray. Once fewer than `min_rays` rays of the packet remain in a subtree, each finishes it
+/// with the single-ray traversal from that node (detail::wide_traverse_octant).
+/// Other cases (double trees, box::fast, -DDYNBVH_NO_SIMD, non-x86): a loop of single-ray queries, which
+/// gives the same answers by construction. (box::fast is not conservative, so its answers could depend
+/// on the visit order: its packets are traced ray by ray.)
+/// Cost: no allocation unless the tree is deeper than 32 wide levels (then one heap stack per packet).
+#pragma once
+
+#include <algorithm>
+#include <bit>
+#include <cstddef>
+#include <cstdint>
+#include <limits>
+#include <new>
+#include <span>
+#include <type_traits>
+#include <vector>
+
+#include "detail/check_triangles.hpp"
+#include "detail/simd.hpp"
+#include "detail/triangle_block.hpp"
+#include "intersect.hpp"
+#include "ray.hpp"
+#include "traverse.hpp"
+#include "traverse_wide.hpp"
+#include "wide.hpp"
+#include "wide_blocks.hpp"
+
+namespace dynbvh {
+
+/// N rays, structure of arrays (N = 8 or 16; 64-byte aligned): lane k is the ray
+/// org = (org_x[k], org_y[k], org_z[k]), dir = (dir_x[k], dir_y[k], dir_z[k]), [tmin[k], tmax[k]], with
+/// Ray's conventions. A default packet holds N default rays (Ray<T>{}).
+template <class T, int N>
+struct alignas(64) RayPacket {
+    static_assert(N == 8 || N == 16, "dynbvh: ray packets have 8 or 16 rays");
+    static_assert(std::is_same_v<T, float> || std::is_same_v<T, double>, "dynbvh: scalar must be float or double");
+    /// Rays per packet.
+    static constexpr int size = N;
+    /// @{
+    /// Origins, per lane.
+    alignas(64) T org_x[std::size_t(N)], org_y[std::size_t(N)], org_z[std::size_t(N)];
+    /// @}
+    /// @{
+    /// Directions, per lane (need not be normalised).
+    alignas(64) T dir_x[std::size_t(N)], dir_y[std::size_t(N)], dir_z[std::size_t(N)];
+    /// @}
+    /// @{
+    /// Hit intervals [tmin, tmax], per lane.
+    alignas(64) T tmin[std::size_t(N)], tmax[std::size_t(N)];
+    /// @}
+
+    /// N default rays.
+    RayPacket() noexcept {
+        for (int k = 0; k < N; ++k) set(k, Ray<T>{});
+    }
+    /// Stores `r` in lane k (0 <= k < N).
+    void set(int k, const Ray<T>& r) noexcept {
+        const std::size_t i = std::size_t(k);
+        org_x[i] = r.org.x;
+        org_y[i] = r.org.y;
+        org_z[i] = r.org.z;
+        dir_x[i] = r.dir.x;
+        dir_y[i] = r.dir.y;
+        dir_z[i] = r.dir.z;
+        tmin[i] = r.tmin;
+        tmax[i] = r.tmax;
+    }
+    /// The ray of lane k (0 <= k < N), bit for bit as stored.
+    Ray<T> ray(int k) const noexcept {
+        const std::size_t i = std::size_t(k);
+        return {{org_x[i], org_y[i], org_z[i]}, {dir_x[i], dir_y[i], dir_z[i]}, tmin[i], tmax[i]};
+    }
+};
+
+/// The closest hits of a packet, structure of arrays, with Hit's conventions per lane (a miss: t = +inf,
+/// u = v = 0, prim = invalid_prim). A default HitPacket is all misses.
+template <class T, int N>
+struct alignas(64) HitPacket {
+    static_assert(N == 8 || N == 16, "dynbvh: ray packets have 8 or 16 rays");
+    /// Rays per packet.
+    static constexpr int size = N;
+    /// Distance along each lane's ray (multiples of |dir|); +inf for a miss.
+    alignas(64) T t[std::size_t(N)];
+    /// @{
+    /// Barycentrics of p1 and p2 per lane (Hit's convention); 0 for a miss.
+    alignas(64) T u[std::size_t(N)], v[std::size_t(N)];
+    /// @}
+    /// The hit triangle's index per lane, or invalid_prim.
+    alignas(64) std::uint32_t prim[std::size_t(N)];
+
+    /// All misses.
+    HitPacket() noexcept {
+        for (int k = 0; k < N; ++k) set(k, Hit<T>{});
+    }
+    /// Stores `h` in lane k.
+    void set(int k, const Hit<T>& h) noexcept {
+        const std::size_t i = std::size_t(k);
+        t[i] = h.t;
+        u[i] = h.u;
+        v[i] = h.v;
+        prim[i] = h.prim;
+    }
+    /// Lane k's hit.
+    Hit<T> hit(int k) const noexcept {
+        const std::size_t i = std::size_t(k);
+        return {t[i], u[i], v[i], prim[i]};
+    }
+    /// Bit k set when lane k hit something.
+    std::uint32_t hit_mask() const noexcept {
+        std::uint32_t m = 0;
+        for (int k = 0; k < N; ++k) m |= prim[std::size_t(k)] != invalid_prim ? std::uint32_t(1) << k : 0u;
+        return m;
+    }
+};
+
+/// Run-time knobs of the packet traversal.
+struct PacketConfig {
+    /// A group of rays sharing a direction octant (and dominant axis) is traced as a packet while at
+    /// least this many of its rays are active in a subtree; below it each finishes the subtree with the
+    /// single-ray traversal. Default 3 (measured on the bench's primary rays, 8-wide block trees); 1
+    /// keeps packets to the leaves, N + 1 traces every ray alone. Answers do not depend on it.
+    unsigned min_rays = 3;
+};
+
+/// The mask of all N lanes.
+template <int N>
+inline constexpr std::uint32_t all_lanes = N >= 32 ? ~std::uint32_t(0) : (std::uint32_t(1) << N) - 1u;
+
+namespace detail {
+
+/// The single-ray query for one lane (the reference the packet reproduces).
+template <class Policy, bool AnyHit, class WN, class P, class S = typename WN::scalar_type>
+DYNBVH_ALWAYS_INLINE Hit<S> single_lane(const WideBvh<WN, P>& bvh, std::span<const Triangle<S>> tris, const Ray<S>& r) {
+    return wide_traverse<Policy, AnyHit>(bvh, tris, r);
+}
+
+#if defined(DYNBVH_SSE)
+
+/// Horizontal minimum of one register.
+DYNBVH_ALWAYS_INLINE float hmin(__m128 x) noexcept {
+    x = _mm_min_ps(x, _mm_shuffle_ps(x, x, 0x4e));
+    x = _mm_min_ps(x, _mm_shuffle_ps(x, x, 0xb1));
+    return _mm_cvtss_f32(x);
+}
+#if defined(DYNBVH_AVX)
+DYNBVH_ALWAYS_INLINE float hmin(__m256 x) noexcept {
+    return hmin(_mm_min_ps(_mm256_castps256_ps128(x), _mm256_extractf128_ps(x, 1)));
+}
+#endif
+
+/// Lanes of `m` set -> a, else b.
+DYNBVH_ALWAYS_INLINE __m128 select(__m128 m, __m128 a, __m128 b) noexcept { return _mm_or_ps(_mm_and_ps(m, a), _mm_andnot_ps(m, b)); }
+#if defined(DYNBVH_AVX)
+DYNBVH_ALWAYS_INLINE __m256 select(__m256 m, __m256 a, __m256 b) noexcept { return _mm256_blendv_ps(b, a, m); }
+#endif
+
+/// One stack entry of the packet traversal: a node (count 0) or leaf slot, the rays that entered its
+/// box and their entry distances.
+template <class I, int N>
+struct alignas(64) PacketEntry {
+    float tentry[std::size_t(N)];
+    I child;
+    I count;
+    std::uint32_t mask;
+};
+
+/// The packet traversal of one group of rays sharing a direction octant Oct (and, for tri::watertight,
+/// the dominant axis): float WideBvh, box::robust, triangle policy Tri. Each lane keeps the state of
+/// the single-ray traversal (tmax, best triangle, hit); the result of lane k is what that traversal
+/// gives its ray (see the file comment).
+template <class Tri, bool AnyHit, class WN, class P, int N>
+struct PacketTraversal {
+    using V = lanes_for<8>;   // AVX where compiled in, else SSE
+    using R = typename V::reg;
+    using I = typename WN::index_type;
+    static constexpr int W = WN::width;
+    static constexpr int NS = N / V::n;   // SIMD steps per packet
+    using WB = WideBvh<WN, P>;
+    using Policy = trace::policy<box::robust, Tri>;
+    using TriPrepared = typename Tri::template prepared<float>;
+    using Entry = PacketEntry<I, N>;
+    static constexpr std::size_t fixed_levels = 32;
+    static constexpr std::size_t fixed_cap = std::size_t(W - 1) * fixed_levels + 1;
+
+    const WB& bvh;
+    std::span<const Triangle<float>> tris;
+    unsigned min_rays;
+    // per-lane ray state (lanes outside the group hold harmless copies)
+    alignas(64) float ox[N], oy[N], oz[N], ix[N], iy[N], iz[N], tmin[N], tmax[N];
+    alignas(64) float okx[N], oky[N], okz[N], sx[N], sy[N];   // watertight: origin along kx, ky, kz; shear
+    alignas(64) float dx[N], dy[N], dz[N];                     // moller_trumbore: direction
+    std::uint32_t best[N];
+    Hit<float> hit[N];
+    Ray<float> ray[N];
+    union PtStore {
+        PtStore() noexcept {}
+        TriPrepared value;
+    } pt[N];
+    std::uint32_t alive = 0;   // lanes not finished (any hit: not yet occluded)
+    int kx = 0, ky = 1, kz = 2;
+
+    PacketTraversal(const WB& b, std::span<const Triangle<float>> t, unsigned min) noexcept : bvh(b), tris(t), min_rays(min) {}
+
+    /// Sets up lane k for ray r (traceable, box::robust's t_scale 1).
+    void init_lane(int k, const Ray<float>& r, const box::robust::prepared<float>& pb) noexcept {
+        ray[k] = r;
+        ox[k] = pb.org.x;
+        oy[k] = pb.org.y;
+        oz[k] = pb.org.z;
+        ix[k] = pb.inv.x;
+        iy[k] = pb.inv.y;
+        iz[k] = pb.inv.z;
+        tmin[k] = pb.tmin;
+        tmax[k] = r.tmax;
+        best[k] = invalid_prim;
+        hit[k] = Hit<float>{};
+        ::new (static_cast<void*>(&pt[k].value)) TriPrepared(r);
+        if constexpr (std::is_same_v<Tri, tri::watertight>) {
+            kz = pt[k].value.kz;
+            kx = (kz + 1) % 3;
+            ky = (kz + 2) % 3;
+            okx[k] = r.org[std::size_t(kx)];
+            oky[k] = r.org[std::size_t(ky)];
+            okz[k] = r.org[std::size_t(kz)];
+            sx[k] = pt[k].value.sx;
+            sy[k] = pt[k].value.sy;
+        } else {
+            dx[k] = r.dir.x;
+            dy[k] = r.dir.y;
+            dz[k] = r.dir.z;
+        }
+    }
+    /// Copies the first lane of `group`'s ray data to every other lane (so no lane computes on garbage).
+    void fill_others(std::uint32_t group) noexcept {
+        const int f = std::countr_zero(group);
+        for (int k = 0; k < N; ++k) {
+            if (group >> k & 1u) continue;
+            ox[k] = ox[f]; oy[k] = oy[f]; oz[k] = oz[f];
+            ix[k] = ix[f]; iy[k] = iy[f]; iz[k] = iz[f];
+            tmin[k] = tmin[f]; tmax[k] = tmax[f];
+            if constexpr (std::is_same_v<Tri, tri::watertight>) {
+                okx[k] = okx[f]; oky[k] = oky[f]; okz[k] = okz[f]; sx[k] = sx[f]; sy[k] = sy[f];
+            } else {
+                dx[k] = dx[f]; dy[k] = dy[f]; dz[k] = dz[f];
+            }
+        }
+    }
+
+    /// Child slots of node n hit by rays of `m`: per slot the ray mask, the entry distances (into
+    /// te[slot]) and the nearest entry among those rays. Returns the number of hit slots (in slot[]).
+    template <int Oct>
+    DYNBVH_ALWAYS_INLINE int test_node(const WN& n, std::uint32_t m, int* slot, std::uint32_t* smask, float* snear,
+                                       float (*te)[N]) const noexcept {
+        const R c = V::set1(2.0f * rounding_gamma<float>(3));   // box::robust::widen
+        const R inf = V::set1(std::numeric_limits<float>::infinity());
+        int hits = 0;
+        for (int s = 0; s < W; ++s) {
+            if (n.empty_slot(s)) continue;
+            const R nx = V::set1(Oct & 1 ? n.hi_x[s] : n.lo_x[s]), fx = V::set1(Oct & 1 ? n.lo_x[s] : n.hi_x[s]);
+            const R ny = V::set1(Oct & 2 ? n.hi_y[s] : n.lo_y[s]), fy = V::set1(Oct & 2 ? n.lo_y[s] : n.hi_y[s]);
+            const R nz = V::set1(Oct & 4 ? n.hi_z[s] : n.lo_z[s]), fz = V::set1(Oct & 4 ? n.lo_z[s] : n.hi_z[s]);
+            std::uint32_t bits = 0;
+            R near = inf;
+            for (int h = 0; h < NS; ++h) {
+                const int o = h * V::n;
+                // box::robust::test_octant, lane by lane (the same operations as WideBoxTest)
+                const R X = V::load(ox + o), Y = V::load(oy + o), Z = V::load(oz + o);
+                const R IX = V::load(ix + o), IY = V::load(iy + o), IZ = V::load(iz + o);
+                const R x0 = V::mul(V::sub(nx, X), IX), x1 = V::mul(V::sub(fx, X), IX);
+                const R y0 = V::mul(V::sub(ny, Y), IY), y1 = V::mul(V::sub(fy, Y), IY);
+                const R z0 = V::mul(V::sub(nz, Z), IZ), z1 = V::mul(V::sub(fz, Z), IZ);
+                const R tn = V::max(z0, V::max(y0, V::max(x0, V::load(tmin + o))));
+                R tf = V::min(z1, V::min(y1, V::min(x1, V::load(tmax + o))));
+                tf = V::add(tf, V::mul(c, V::abs(tf)));
+                const R hm = V::le(tn, tf);
+                V::store(te[hits] + o, tn);
+                near = V::min(near, select(hm, tn, inf));
+                bits |= V::bits(hm) << o;
+            }
+            bits &= m;
+            if (bits == 0) continue;
+            slot[hits] = s;
+            smask[hits] = bits;
+            snear[hits] = hmin(near);   // (may include a ray outside m: only the visit order depends on it)
+            ++hits;
+        }
+        return hits;
+    }
+
+    /// Lanes of `m` whose box entry `te` is not beyond their tmax (Box::before, lane by lane).
+    DYNBVH_ALWAYS_INLINE std::uint32_t still_open(const float* te, std::uint32_t m) const noexcept {
+        const R c = V::set1(2.0f * rounding_gamma<float>(3));
+        std::uint32_t bits = 0;
+        for (int h = 0; h < NS; ++h) {
+            const int o = h * V::n;
+            const R tm = V::load(tmax + o);
+            bits |= V::bits(V::le(V::load(te + o), V::add(tm, V::mul(c, V::abs(tm))))) << o;
+        }
+        return bits & m;
+    }
+
+    /// Records a hit of lane k (already passed replaces_hit for closest hit).
+    DYNBVH_ALWAYS_INLINE void take(int k, float t, float u, float v, std::uint32_t prim) noexcept {
+        hit[k].t = t;
+        hit[k].u = u;
+        hit[k].v = v;
+        if constexpr (AnyHit) {
+            hit[k].prim = prim;
+            alive &= ~(std::uint32_t(1) << k);
+        } else {
+            tmax[k] = t;
+            best[k] = prim;
+        }
+    }
+
+    /// Triangle `tri` (user index prim) against the rays of m.
+    DYNBVH_ALWAYS_INLINE void test_triangle(const Triangle<float>& tr, std::uint32_t prim, std::uint32_t m) noexcept {
+        if constexpr (std::is_same_v<Tri, tri::watertight>) {
+            using F = WatertightFilter<V>;
+            const std::size_t X = std::size_t(kx), Y = std::size_t(ky), Z = std::size_t(kz);
+            const R ax = V::set1(tr.p0[X]), ay = V::set1(tr.p0[Y]), az = V::set1(tr.p0[Z]);
+            const R bx = V::set1(tr.p1[X]), by = V::set1(tr.p1[Y]), bz = V::set1(tr.p1[Z]);
+            const R cx = V::set1(tr.p2[X]), cy = V::set1(tr.p2[Y]), cz = V::set1(tr.p2[Z]);
+            std::uint32_t rejected = 0;
+            for (int h = 0; h < NS; ++h) {
+                const int o = h * V::n;
+                const R OX = V::load(okx + o), OY = V::load(oky + o), OZ = V::load(okz + o);
+                const R SX = V::load(sx + o), SY = V::load(sy + o);
+                const auto va = F::shear(V::sub(ax, OX), V::sub(ay, OY), V::sub(az, OZ), SX, SY);
+                const auto vb = F::shear(V::sub(bx, OX), V::sub(by, OY), V::sub(bz, OZ), SX, SY);
+                const auto vc = F::shear(V::sub(cx, OX), V::sub(cy, OY), V::sub(cz, OZ), SX, SY);
+                rejected |= V::bits(F::rejects(va, vb, vc)) << o;
+            }
+            for (std::uint32_t c = m & ~rejected; c != 0; c &= c - 1) {
+                const int k = std::countr_zero(c);
+                float t, u, v;
+                if (!tri::watertight::test(pt[k].value, tr, tmax[k], t, u, v)) continue;
+                if constexpr (!AnyHit)
+                    if (!replaces_hit(t, tmax[k], prim, best[k])) continue;
+                take(k, t, u, v, prim);
+            }
+        } else if constexpr (std::is_same_v<Tri, tri::moller_trumbore>) {
+            // the scalar test's operations lane by lane (vec.hpp's cross and dot, one division)
+            const float e1x_ = tr.p1.x - tr.p0.x, e1y_ = tr.p1.y - tr.p0.y, e1z_ = tr.p1.z - tr.p0.z;
+            const float e2x_ = tr.p2.x - tr.p0.x, e2y_ = tr.p2.y - tr.p0.y, e2z_ = tr.p2.z - tr.p0.z;
+            const R e1x = V::set1(e1x_), e1y = V::set1(e1y_), e1z = V::set1(e1z_);
+            const R e2x = V::set1(e2x_), e2y = V::set1(e2y_), e2z = V::set1(e2z_);
+            const R p0x = V::set1(tr.p0.x), p0y = V::set1(tr.p0.y), p0z = V::set1(tr.p0.z);
+            const R zero = V::set1(0.0f), one = V::set1(1.0f);
+            alignas(64) float tt[N], uu[N], vv[N];
+            std::uint32_t ok = 0;
+            for (int h = 0; h < NS; ++h) {
+                const int o = h * V::n;
+                const R DX = V::load(dx + o), DY = V::load(dy + o), DZ = V::load(dz + o);
+                const R pvx = V::sub(V::mul(DY, e2z), V::mul(DZ, e2y));
+                const R pvy = V::sub(V::mul(DZ, e2x), V::mul(DX, e2z));
+                const R pvz = V::sub(V::mul(DX, e2y), V::mul(DY, e2x));
+                const R det = V::add(V::add(V::mul(e1x, pvx), V::mul(e1y, pvy)), V::mul(e1z, pvz));
+                const R inv = V::div(one, det);
+                const R tvx = V::sub(V::load(ox + o), p0x), tvy = V::sub(V::load(oy + o), p0y), tvz = V::sub(V::load(oz + o), p0z);
+                const R u = V::mul(V::add(V::add(V::mul(tvx, pvx), V::mul(tvy, pvy)), V::mul(tvz, pvz)), inv);
+                const R qx = V::sub(V::mul(tvy, e1z), V::mul(tvz, e1y));
+                const R qy = V::sub(V::mul(tvz, e1x), V::mul(tvx, e1z));
+                const R qz = V::sub(V::mul(tvx, e1y), V::mul(tvy, e1x));
+                const R v = V::mul(V::add(V::add(V::mul(DX, qx), V::mul(DY, qy)), V::mul(DZ, qz)), inv);
+                const R t = V::mul(V::add(V::add(V::mul(e2x, qx), V::mul(e2y, qy)), V::mul(e2z, qz)), inv);
+                const R okr = V::band(V::band(V::band(V::ne(det, zero), V::ge(u, zero)), V::band(V::le(u, one), V::ge(v, zero))),
+                                      V::band(V::le(V::add(u, v), one),
+                                              V::band(V::ge(t, V::load(tmin + o)), V::le(t, V::load(tmax + o)))));
+                V::store(tt + o, t);
+                V::store(uu + o, u);
+                V::store(vv + o, v);
+                ok |= V::bits(okr) << o;
+            }
+            for (std::uint32_t c = ok & m; c != 0; c &= c - 1) {
+                const int k = std::countr_zero(c);
+                const float t = tt[k] + 0.0f;   // -0 -> +0, as the scalar test
+                if constexpr (!AnyHit)
+                    if (!replaces_hit(t, tmax[k], prim, best[k])) continue;
+                take(k, t, uu[k], vv[k], prim);
+            }
+        } else {
+            for (std::uint32_t c = m; c != 0; c &= c - 1) {
+                const int k = std::countr_zero(c);
+                float t, u, v;
+                if (!Tri::test(pt[k].value, tr, tmax[k], t, u, v)) continue;
+                if constexpr (!AnyHit)
+                    if (!replaces_hit(t, tmax[k], prim, best[k])) continue;
+                take(k, t, u, v, prim);
+            }
+        }
+    }
+
+    /// Leaf slot (first, count) against the rays of m.
+    DYNBVH_ALWAYS_INLINE void test_leaf_packet(I first, I count, std::uint32_t m) noexcept {
+        if constexpr (WB::block_lanes > 0) {
+            constexpr int BL = WB::block_lanes;
+            const auto* blocks = bvh.blocks.data();
+            const std::size_t end = std::size_t(first) + blocks_for<BL>(count);
+            for (std::size_t i = first; i < end; ++i) {
+                const auto& b = blocks[i];
+                for (int j = 0; j < int(b.count); ++j) {
+                    if constexpr (AnyHit) {
+                        m &= alive;
+                        if (m == 0) return;
+                    }
+                    test_triangle(b.triangle(j), b.prim[j], m);
+                }
+            }
+        } else {
+            const I* ids = bvh.prim_ids.data();
+            const Triangle<float>* lt = WB::precomputed ? bvh.leaf_triangles.data() : tris.data();
+            for (std::size_t s = first; s < std::size_t(first) + count; ++s) {
+                if constexpr (AnyHit) {
+                    m &= alive;
+                    if (m == 0) return;
+                }
+                test_triangle(WB::precomputed ? lt[s] : lt[ids[s]], static_cast<std::uint32_t>(ids[s]), m);
+            }
+        }
+    }
+
+    /// Lane k finishes the subtree (node, count) with the single-ray traversal, from its state.
+    template <int Oct>
+    DYNBVH_NOINLINE void finish_lane(int k, I node, I count) {
+        const box::robust::prepared<float> pb(ray[k]);
+        const WideBoxTest<box::robust, float, W> wb(pb);
+        using SE = WideStackEntry<I, float>;
+        constexpr std::size_t cap = std::size_t(W - 1) * std::size_t(max_depth);
+        Hit<float> h = hit[k];
+        bool done;
+        if (bvh.depth < max_depth) {
+            SE stack[cap];
+            done = wide_traverse_octant<Policy, AnyHit, Oct>(bvh, tris, ray[k], 1.0f, wb, h, stack, cap, node, count, tmax[k], best[k]);
+        } else {
+            done = false;
+        }
+        if (!done) {   // a tree deeper than its depth field says: a stack that cannot overflow
+            std::vector<SE> heap(std::size_t(W - 1) * (bvh.nodes.size() + 1));
+            h = hit[k];
+            wide_traverse_octant<Policy, AnyHit, Oct>(bvh, tris, ray[k], 1.0f, wb, h, heap.data(), heap.size(), node, count, tmax[k],
+                                                       best[k]);
+        }
+        if constexpr (AnyHit) {
+            if (h.prim != invalid_prim) take(k, h.t, h.u, h.v, h.prim);
+        } else {
+            hit[k] = h;   // (h.prim is the lane's best triangle, or invalid_prim)
+            tmax[k] = h.prim != invalid_prim ? h.t : tmax[k];
+            best[k] = h.prim;
+        }
+    }
+
+    /// Traces the rays of `group` (all of octant Oct) from the root; false when the stack of `cap`
+    /// entries would overflow (a tree whose depth field is wrong: the caller redoes the rays alone).
+    template <int Oct>
+    bool run(std::uint32_t group, Entry* stack, std::size_t cap) {
+        alive = group;
+        std::size_t sp = 0;
+        I cur = 0, cur_count = 0;
+        std::uint32_t m = group;
+        int slot[W];
+        std::uint32_t smask[W];
+        float snear[W];
+        alignas(64) float te[W][N];
+        for (;;) {
+            if constexpr (AnyHit) m &= alive;   // occluded rays are done
+            if (unsigned(std::popcount(m)) < min_rays) {   // few rays left here: each goes on alone
+                for (std::uint32_t c = m; c != 0; c &= c - 1) finish_lane<Oct>(std::countr_zero(c), cur, cur_count);
+            } else if (cur_count == 0) {
+                const int nh = test_node<Oct>(bvh.nodes[cur], m, slot, smask, snear, te);
+                if (nh != 0) {
+                    // nearest first: sort the hit slots by their nearest entry, push all but the nearest
+                    int order[W];
+                    for (int i = 0; i < nh; ++i) order[i] = i;
+                    for (int i = 1; i < nh; ++i)
+                        for (int j = i; j > 0 && snear[order[j]] < snear[order[j - 1]]; --j) std::swap(order[j], order[j - 1]);
+                    if (sp + std::size_t(nh) > cap) [[unlikely]] return false;
+                    const WN& n = bvh.nodes[cur];
+                    for (int i = nh - 1; i > 0; --i) {
+                        const int q = order[i];
+                        Entry& e = stack[sp++];
+                        std::copy(te[q], te[q] + N, e.tentry);
+                        e.child = n.child[slot[q]];
+                        e.count = n.count[slot[q]];
+                        e.mask = smask[q];
+                    }
+                    const int q = order[0];
+                    cur = n.child[slot[q]];
+                    cur_count = n.count[slot[q]];
+                    m = smask[q];
+                    continue;
+                }
+            } else {
+                test_leaf_packet(cur, cur_count, m);
+            }
+            // Pop the next entry that still holds rays which may find a closer hit there.
+            for (;;) {
+                if constexpr (AnyHit)
+                    if (alive == 0) return true;
+                if (sp == 0) return true;
+                const Entry& e = stack[--sp];
+                std::uint32_t em = e.mask;
+                if constexpr (AnyHit) em &= alive;
+                if (em == 0) continue;
+                em = still_open(e.tentry, em);
+                if (em == 0) continue;
+                cur = e.child;
+                cur_count = e.count;
+                m = em;
+                break;
+            }
+        }
+    }
+
+    /// Traces `group` (octant Oct), on the fixed stack or, for a tree deeper than it, on the heap.
+    template <int Oct>
+    void trace(std::uint32_t group) {
+        fill_others(group);
+        bool ok;
+        if (bvh.depth < fixed_levels) {
+            Entry stack[fixed_cap];
+            ok = run<Oct>(group, stack, fixed_cap);
+        } else {
+            std::vector<Entry> heap(std::size_t(W - 1) * (bvh.nodes.size() + 1) + 1);
+            ok = run<Oct>(group, heap.data(), heap.size());
+        }
+        if (!ok) [[unlikely]]   // the tree is deeper than its depth field: every ray of the group alone
+            for (std::uint32_t c = group; c != 0; c &= c - 1) {
+                const int k = std::countr_zero(c);
+                hit[k] = single_lane<Policy, AnyHit>(bvh, tris, ray[k]);
+                best[k] = hit[k].prim;
+            }
+    }
+};
+
+/// Groups the active lanes, traces each group as a packet or ray by ray; out[k] gets lane k's answer.
+template <class Tri, bool AnyHit, class WN, class P, int N>
+void packet_traverse(const WideBvh<WN, P>& bvh, std::span<const Triangle<float>> tris, const RayPacket<float, N>& packet,
+                     std::uint32_t active, const PacketConfig& cfg, Hit<float>* out) {
+    using Policy = trace::policy<box::robust, Tri>;
+    using PT = PacketTraversal<Tri, AnyHit, WN, P, N>;
+    if (bvh.nodes.empty()) return;
+    // Classify: rays the packet takes (traceable, no direction scaling) get a key (octant, dominant axis).
+    int key[N];
+    std::uint32_t packable = 0;
+    alignas(64) unsigned char pb_store[N][sizeof(box::robust::prepared<float>)];
+    for (std::uint32_t c = active; c != 0; c &= c - 1) {
+        const int k = std::countr_zero(c);
+        const Ray<float> r = packet.ray(k);
+        if (!traceable(r)) continue;   // single ray below (it misses)
+        const auto* pb = ::new (static_cast<void*>(pb_store[k])) box::robust::prepared<float>(r);
+        if (pb->t_scale != 1.0f) continue;
+        int kzk = 0;
+        if constexpr (std::is_same_v<Tri, tri::watertight>)
+            kzk = largest_axis(Vec3<float>{std::abs(r.dir.x), std::abs(r.dir.y), std::abs(r.dir.z)});
+        key[k] = pb->octant | kzk << 3;
+        packable |= std::uint32_t(1) << k;
+    }
+    // Rays alone: the few of a kind, and every ray the packet does not take.
+    std::uint32_t alone = active & ~packable;
+    std::uint32_t groups[N];
+    int ng = 0;
+    for (std::uint32_t rest = packable; rest != 0;) {
+        const int f = std::countr_zero(rest);
+        std::uint32_t g = 0;
+        for (std::uint32_t c = rest; c != 0; c &= c - 1)
+            if (key[std::countr_zero(c)] == key[f]) g |= std::uint32_t(1) << std::countr_zero(c);
+        rest &= ~g;
+        if (unsigned(std::popcount(g)) < std::max(cfg.min_rays, 2u)) alone |= g;
+        else groups[ng++] = g;
+    }
+    for (std::uint32_t c = alone; c != 0; c &= c - 1) {
+        const int k = std::countr_zero(c);
+        out[k] = single_lane<Policy, AnyHit>(bvh, tris, packet.ray(k));
+    }
+    if (ng == 0) return;
+    PT st(bvh, tris, cfg.min_rays);
+    for (int gi = 0; gi < ng; ++gi) {
+        const std::uint32_t g = groups[gi];
+        for (std::uint32_t c = g; c != 0; c &= c - 1) {
+            const int k = std::countr_zero(c);
+            st.init_lane(k, packet.ray(k), *std::launder(reinterpret_cast<const box::robust::prepared<float>*>(pb_store[k])));
+        }
+        const int oct = key[std::countr_zero(g)] & 7;
+        dispatch_octant(oct, [&](auto o) { st.template trace<decltype(o)::value>(g); });
+        for (std::uint32_t c = g; c != 0; c &= c - 1) {
+            const int k = std::countr_zero(c);
+            out[k] = st.hit[k];
+            if constexpr (!AnyHit) out[k].prim = st.best[k];
+        }
+    }
+}
+#endif  // DYNBVH_SSE
+
+/// Packet query: lane k of `out` gets the single-ray answer for every active lane, Hit{} elsewhere.
+template <class Policy, bool AnyHit, class WN, class P, int N, class S = typename WN::scalar_type>
+void packet_query(const WideBvh<WN, P>& bvh, std::span<const Triangle<S>> tris, const RayPacket<S, N>& packet, std::uint32_t active,
+                  const PacketConfig& cfg, Hit<S>* out) {
+    active &= all_lanes<N>;
+#if defined(DYNBVH_SSE)
+    if constexpr (std::is_same_v<S, float> && std::is_same_v<typename Policy::box_test, box::robust>) {
+        packet_traverse<typename Policy::triangle_test, AnyHit>(bvh, tris, packet, active, cfg, out);
+        return;
+    }
+#endif
+    (void)cfg;
+    for (std::uint32_t c = active; c != 0; c &= c - 1) {
+        const int k = std::countr_zero(c);
+        out[k] = single_lane<Policy, AnyHit>(bvh, tris, packet.ray(k));
+    }
+}
+
+} // namespace detail
+
+/// Closest hits of the active lanes of `packet` (bit k of `active` set; bits from N on are ignored) in a
+/// wide BVH: lane k of the result is, bit for bit, `intersect<Policy>(bvh, tris, packet.ray(k))`;
+/// inactive lanes get the miss value Hit{}. `tris` as for the single-ray intersect (a wrong size throws
+/// std::invalid_argument). Fastest for coherent rays (a tile of camera rays, shadow rays towards one
+/// light); see the file comment for the traversal and `cfg`.
+template <class Policy = trace::robust, class WN, class P, int N>
+HitPacket<typename WN::scalar_type, N> intersect(const WideBvh<WN, P>& bvh,
+                                                 std::type_identity_t<std::span<const Triangle<typename WN::scalar_type>>> tris,
+                                                 const RayPacket<typename WN::scalar_type, N>& packet,
+                                                 std::uint32_t active = all_lanes<N>, const PacketConfig& cfg = {}) {
+    using S = typename WN::scalar_type;
+    detail::check_triangles(bvh, tris.size(), "intersect", !WideBvh<WN, P>::precomputed);
+    Hit<S> out[std::size_t(N)];
+    detail::packet_query<Policy, false>(bvh, tris, packet, active, cfg, out);
+    HitPacket<S, N> res;
+    for (int k = 0; k < N; ++k) res.set(k, out[k]);
+    return res;
+}
+
+/// Any-hit query of the active lanes of `packet` (shadow rays): bit k of the result is set when lane k
+/// is active and `occluded<Policy>(bvh, tris, packet.ray(k))` is true. Stops each ray at its first hit.
+template <class Policy = trace::robust, class WN, class P, int N>
+std::uint32_t occluded(const WideBvh<WN, P>& bvh, std::type_identity_t<std::span<const Triangle<typename WN::scalar_type>>> tris,
+                       const RayPacket<typename WN::scalar_type, N>& packet, std::uint32_t active = all_lanes<N>,
+                       const PacketConfig& cfg = {}) {
+    using S = typename WN::scalar_type;
+    detail::check_triangles(bvh, tris.size(), "occluded", !WideBvh<WN, P>::precomputed);
+    Hit<S> out[std::size_t(N)];
+    detail::packet_query<Policy, true>(bvh, tris, packet, active, cfg, out);
+    std::uint32_t m = 0;
+    for (int k = 0; k < N; ++k) m |= out[k].prim != invalid_prim ? std::uint32_t(1) << k : 0u;
+    return m;
+}
+
+} // namespace dynbvh
