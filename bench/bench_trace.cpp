@@ -9,7 +9,9 @@
 // Scenes: the middle frame of the built-in cloth-ball, n-body and funnel (scene camera), `lattice`
 // (scenes/lattice.hpp: 101k long thin triangles of beams crossing the scene, turned off the axes), and
 // the Stanford bunny and dragon from DYNBVH_DATA_DIR when present (a camera that frames the mesh).
-// Packets: 4x2 pixels (8 rays) or 4x4 (16) inside each 16x16 tile, coherent context for Embree.
+// Packets: 4x2 pixels (8 rays) or 4x4 (16) inside each 16x16 tile, coherent context for Embree; ours
+// ("... blk x8", "x16": packet.hpp on the block trees, trace::robust) beside them, checked to give the
+// single-ray column's hits ray for ray ("packets!=single" must be 0).
 // Trees: LBVH, PLOC (r = 5) and binned SAH, prim::indexed, each traced binary (traverse.hpp) and
 // converted to 4-wide and 8-wide ("wide8") nodes (wide.hpp); trace::robust unless the row says "fast";
 // "pre" = prim::copied. 8-wide nodes are tested with AVX when compiled with it (-march=native,
@@ -35,6 +37,7 @@
 #include <dynbvh/kbvh.hpp>
 #include <dynbvh/io/ply.hpp>
 #include <dynbvh/lbvh.hpp>
+#include <dynbvh/packet.hpp>
 #include <dynbvh/ploc.hpp>
 #include <dynbvh/sah.hpp>
 #include <scenes/builtin.hpp>
@@ -283,6 +286,28 @@ int main(int argc, char** argv) {
         add_packets("embree-low x16", embree_packets(elow, P16{}), P16{});
         add_packets("embree-medium x8", embree_packets(emed, P8{}), P8{});
         add_packets("embree-medium x16", embree_packets(emed, P16{}), P16{});
+        const std::size_t embree_end = methods.size();   // methods[2 .. embree_end): Embree's packets
+        // Our packets (packet.hpp) on the block trees, the same tiles: the same hits as the single rays
+        auto our_packets = [&](const auto& tree, auto n) {
+            return [&tree, tris](const Rayf* rays, const int* valid, std::uint32_t* prims) {
+                constexpr int N = decltype(n)::value;
+                RayPacket<float, N> p;
+                std::uint32_t active = 0;
+                for (int k = 0; k < N; ++k) {
+                    p.set(k, rays[k]);
+                    active |= valid[k] ? std::uint32_t(1) << k : 0u;
+                }
+                const HitPacket<float, N> h = intersect(tree, tris, p, active);
+                for (int k = 0; k < N; ++k) prims[k] = h.prim[k];
+            };
+        };
+        const std::size_t first_our_packets = methods.size();
+        add_packets("lbvh wide8 blk x16", our_packets(lbk, P16{}), P16{});
+        add_packets("ploc wide8 blk x8", our_packets(pbk, P8{}), P8{});
+        add_packets("ploc wide8 blk x16", our_packets(pbk, P16{}), P16{});
+        add_packets("sah wide8 blk x8", our_packets(sbk, P8{}), P8{});
+        add_packets("sah wide8 blk x16", our_packets(sbk, P16{}), P16{});
+        add_packets("kbvh wide8 blk x16", our_packets(kbk, P16{}), P16{});
         const std::size_t first_ours = methods.size();   // methods[0], [1]: Embree LOW / MEDIUM rtcIntersect1
         add("lbvh binary", [&](const Rayf& r) { return intersect(lb, tris, r).prim; });
         add("lbvh wide", [&](const Rayf& r) { return intersect(lw, tris, r).prim; });
@@ -342,9 +367,21 @@ int main(int argc, char** argv) {
             hits += a[i] != invalid_prim;
             emb_diff += (a[i] != invalid_prim) != (e[i] != invalid_prim);
         }
+        // our packets against our single rays on the same tree (prims: must be identical)
+        {
+            std::size_t diff = 0;
+            for (std::size_t m = first_our_packets; m < first_ours; ++m) {
+                const std::string single = methods[m].name.substr(0, methods[m].name.rfind(' '));
+                const auto it = std::find_if(methods.begin(), methods.end(), [&](const Method& x) { return x.name == single; });
+                methods[m].trace(gen, build_threads, a);
+                it->trace(gen, build_threads, b);
+                for (std::size_t i = 0; i < nrays; ++i) diff += a[i] != b[i];
+            }
+            agree += " packets!=single:" + std::to_string(diff);
+        }
         // Embree's packets against its single rays on the same scene (hit/miss)
         std::size_t pkt_diff = 0;
-        for (std::size_t m = 2; m < first_ours; ++m) {
+        for (std::size_t m = 2; m < embree_end; ++m) {
             methods[m].trace(gen, build_threads, b);
             for (std::size_t i = 0; i < nrays; ++i) pkt_diff += (b[i] != invalid_prim) != (e[i] != invalid_prim);
         }
@@ -384,7 +421,7 @@ int main(int argc, char** argv) {
                 const double lo = double(nrays) / median(methods[0].ms[ti]) * 1e-3;
                 const double me = double(nrays) / median(methods[1].ms[ti]) * 1e-3;
                 double pk = 0;   // Embree's best packet figure (LOW/MEDIUM x 8/16)
-                for (std::size_t p = 2; p < first_ours; ++p)
+                for (std::size_t p = 2; p < embree_end; ++p)
                     if (!methods[p].ms[ti].empty()) pk = std::max(pk, double(nrays) / median(methods[p].ms[ti]) * 1e-3);
                 std::printf(" |         %7.2f %5.2f %5.2f %5.2f", mr, mr / lo, mr / me, pk > 0 ? mr / pk : 0.0);
             }

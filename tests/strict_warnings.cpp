@@ -16,6 +16,7 @@
 #include <dynbvh/kbvh.hpp>
 #include <dynbvh/lbvh.hpp>
 #include <dynbvh/node.hpp>
+#include <dynbvh/packet.hpp>
 #include <dynbvh/ploc.hpp>
 #include <dynbvh/presplit.hpp>
 #include <dynbvh/ray.hpp>
@@ -62,6 +63,14 @@ double queries(Bvh<NodeT, Prim>& bvh, std::span<const Triangle<typename NodeT::s
     sum += double(intersect<trace::fast>(w4, tris, ray).t) + double(occluded<trace::fast>(w4, tris, ray));
     sum += double(intersect<trace::robust>(w8, tris, ray).t) + double(occluded<trace::robust>(w8, tris, ray));
     sum += double(intersect<trace::fast>(w8, tris, ray).t) + double(occluded<trace::fast>(w8, tris, ray));
+    // Packets of 8 and 16 (packet.hpp) on the wide forms.
+    RayPacket<T, 8> p8;
+    RayPacket<T, 16> p16;
+    p8.set(0, ray);
+    p16.set(3, ray);
+    sum += double(intersect<trace::robust>(w8, tris, p8).t[0]) + double(occluded<trace::robust>(w8, tris, p16, 0x0f0fu));
+    sum += double(intersect<trace::fast>(w4, tris, p16, all_lanes<16>, {.min_rays = 2}).t[3]) + double(occluded<trace::fast>(w4, tris, p8));
+    sum += double(intersect<trace::policy<box::robust, tri::moller_trumbore>>(w4, tris, p8).hit(0).t);
     sum += double(brute_force_intersect<trace::robust, T>(tris, ray).t);
     sum += double(brute_force_occluded<trace::fast, T>(tris, ray));
     return sum;
@@ -107,6 +116,12 @@ double blocks(std::span<const Trianglef> tris, const Exec& ex) {
     const auto b84 = make_wide_blocks<8, 4>(bvh, tris, ex);
     double sum = double(intersect<trace::robust>(b8, tris, ray).t) + double(occluded<trace::fast>(b8, tris, ray));
     sum += double(intersect<trace::fast>(b84, tris, ray).t) + double(occluded<trace::robust>(b84, tris, ray));
+    RayPacket<float, 16> p;
+    p.set(0, ray);
+    sum += double(intersect(b8, tris, p).t[0]) + double(occluded(b84, tris, p));
+    sum += double(intersect<trace::policy<box::robust, tri::moller_trumbore>>(b8, tris, p).hit_mask());
+    RayPacket<float, 8> q;
+    sum += double(occluded<trace::policy<box::robust, tri::moller_trumbore>>(b84, tris, q, 0x3u));
     return sum;
 }
 

@@ -207,6 +207,7 @@ struct PacketTraversal {
     using I = typename WN::index_type;
     static constexpr int W = WN::width;
     static constexpr int NS = N / V::n;   // SIMD steps per packet
+    static constexpr std::size_t NZ = std::size_t(N), WZ = std::size_t(W);   // (array bounds)
     using WB = WideBvh<WN, P>;
     using Policy = trace::policy<box::robust, Tri>;
     using TriPrepared = typename Tri::template prepared<float>;
@@ -218,16 +219,16 @@ struct PacketTraversal {
     std::span<const Triangle<float>> tris;
     unsigned min_rays;
     // per-lane ray state (lanes outside the group hold harmless copies)
-    alignas(64) float ox[N], oy[N], oz[N], ix[N], iy[N], iz[N], tmin[N], tmax[N];
-    alignas(64) float okx[N], oky[N], okz[N], sx[N], sy[N];   // watertight: origin along kx, ky, kz; shear
-    alignas(64) float dx[N], dy[N], dz[N];                     // moller_trumbore: direction
-    std::uint32_t best[N];
-    Hit<float> hit[N];
-    Ray<float> ray[N];
+    alignas(64) float ox[NZ], oy[NZ], oz[NZ], ix[NZ], iy[NZ], iz[NZ], tmin[NZ], tmax[NZ];
+    alignas(64) float okx[NZ], oky[NZ], okz[NZ], sx[NZ], sy[NZ];   // watertight: origin along kx, ky, kz; shear
+    alignas(64) float dx[NZ], dy[NZ], dz[NZ];                     // moller_trumbore: direction
+    std::uint32_t best[NZ];
+    Hit<float> hit[NZ];
+    Ray<float> ray[NZ];
     union PtStore {
         PtStore() noexcept {}
         TriPrepared value;
-    } pt[N];
+    } pt[NZ];
     std::uint32_t alive = 0;   // lanes not finished (any hit: not yet occluded)
     int kx = 0, ky = 1, kz = 2;
 
@@ -282,7 +283,7 @@ struct PacketTraversal {
     /// te[slot]) and the nearest entry among those rays. Returns the number of hit slots (in slot[]).
     template <int Oct>
     DYNBVH_ALWAYS_INLINE int test_node(const WN& n, std::uint32_t m, int* slot, std::uint32_t* smask, float* snear,
-                                       float (*te)[N]) const noexcept {
+                                       float (*te)[NZ]) const noexcept {
         const R c = V::set1(2.0f * rounding_gamma<float>(3));   // box::robust::widen
         const R inf = V::set1(std::numeric_limits<float>::infinity());
         int hits = 0;
@@ -379,7 +380,7 @@ struct PacketTraversal {
             const R e2x = V::set1(e2x_), e2y = V::set1(e2y_), e2z = V::set1(e2z_);
             const R p0x = V::set1(tr.p0.x), p0y = V::set1(tr.p0.y), p0z = V::set1(tr.p0.z);
             const R zero = V::set1(0.0f), one = V::set1(1.0f);
-            alignas(64) float tt[N], uu[N], vv[N];
+            alignas(64) float tt[NZ], uu[NZ], vv[NZ];
             std::uint32_t ok = 0;
             for (int h = 0; h < NS; ++h) {
                 const int o = h * V::n;
@@ -490,10 +491,10 @@ struct PacketTraversal {
         std::size_t sp = 0;
         I cur = 0, cur_count = 0;
         std::uint32_t m = group;
-        int slot[W];
-        std::uint32_t smask[W];
-        float snear[W];
-        alignas(64) float te[W][N];
+        int slot[WZ];
+        std::uint32_t smask[WZ];
+        float snear[WZ];
+        alignas(64) float te[WZ][NZ];
         for (;;) {
             if constexpr (AnyHit) m &= alive;   // occluded rays are done
             if (unsigned(std::popcount(m)) < min_rays) {   // few rays left here: each goes on alone
@@ -502,7 +503,7 @@ struct PacketTraversal {
                 const int nh = test_node<Oct>(bvh.nodes[cur], m, slot, smask, snear, te);
                 if (nh != 0) {
                     // nearest first: sort the hit slots by their nearest entry, push all but the nearest
-                    int order[W];
+                    int order[WZ];
                     for (int i = 0; i < nh; ++i) order[i] = i;
                     for (int i = 1; i < nh; ++i)
                         for (int j = i; j > 0 && snear[order[j]] < snear[order[j - 1]]; --j) std::swap(order[j], order[j - 1]);
@@ -573,9 +574,9 @@ void packet_traverse(const WideBvh<WN, P>& bvh, std::span<const Triangle<float>>
     using PT = PacketTraversal<Tri, AnyHit, WN, P, N>;
     if (bvh.nodes.empty()) return;
     // Classify: rays the packet takes (traceable, no direction scaling) get a key (octant, dominant axis).
-    int key[N];
+    int key[std::size_t(N)];
     std::uint32_t packable = 0;
-    alignas(64) unsigned char pb_store[N][sizeof(box::robust::prepared<float>)];
+    alignas(64) unsigned char pb_store[std::size_t(N)][sizeof(box::robust::prepared<float>)];
     for (std::uint32_t c = active; c != 0; c &= c - 1) {
         const int k = std::countr_zero(c);
         const Ray<float> r = packet.ray(k);
@@ -590,7 +591,7 @@ void packet_traverse(const WideBvh<WN, P>& bvh, std::span<const Triangle<float>>
     }
     // Rays alone: the few of a kind, and every ray the packet does not take.
     std::uint32_t alone = active & ~packable;
-    std::uint32_t groups[N];
+    std::uint32_t groups[std::size_t(N)];
     int ng = 0;
     for (std::uint32_t rest = packable; rest != 0;) {
         const int f = std::countr_zero(rest);
