@@ -152,6 +152,12 @@ struct PacketConfig {
     /// single-ray traversal. Default 3 (measured on the bench's primary rays, 8-wide block trees); 1
     /// keeps packets to the leaves, N + 1 traces every ray alone. Answers do not depend on it.
     unsigned min_rays = 3;
+    /// Coherent groups (no direction component exactly 0) traverse inner nodes with one interval test
+    /// per node for the whole group (bounds of the group's origins and reciprocal directions, as in
+    /// Wald et al. 2007, "Ray Tracing Deformable Scenes using Dynamic Bounding Volume Hierarchies"),
+    /// and test leaf boxes ray by ray; false tests every child box ray by ray. Default true (faster on
+    /// primary rays). Answers do not depend on it.
+    bool interval = true;
 };
 
 /// The mask of all N lanes.
@@ -180,6 +186,18 @@ DYNBVH_ALWAYS_INLINE float hmin(__m256 x) noexcept {
 }
 #endif
 
+/// Horizontal maximum of one register.
+DYNBVH_ALWAYS_INLINE float hmax(__m128 x) noexcept {
+    x = _mm_max_ps(x, _mm_shuffle_ps(x, x, 0x4e));
+    x = _mm_max_ps(x, _mm_shuffle_ps(x, x, 0xb1));
+    return _mm_cvtss_f32(x);
+}
+#if defined(DYNBVH_AVX)
+DYNBVH_ALWAYS_INLINE float hmax(__m256 x) noexcept {
+    return hmax(_mm_max_ps(_mm256_castps256_ps128(x), _mm256_extractf128_ps(x, 1)));
+}
+#endif
+
 /// Lanes of `m` set -> a, else b.
 DYNBVH_ALWAYS_INLINE __m128 select(__m128 m, __m128 a, __m128 b) noexcept { return _mm_or_ps(_mm_and_ps(m, a), _mm_andnot_ps(m, b)); }
 #if defined(DYNBVH_AVX)
@@ -194,6 +212,16 @@ struct alignas(64) PacketEntry {
     I child;
     I count;
     std::uint32_t mask;
+};
+
+/// One stack entry of the interval traversal: a node or leaf slot, the rays it is for and a lower
+/// bound of their entry distances.
+template <class I>
+struct IntervalEntry {
+    I child;
+    I count;
+    std::uint32_t mask;
+    float tentry;
 };
 
 /// The packet traversal of one group of rays sharing a direction octant Oct (and, for tri::watertight,
@@ -231,8 +259,15 @@ struct PacketTraversal {
     } pt[NZ];
     std::uint32_t alive = 0;   // lanes not finished (any hit: not yet occluded)
     int kx = 0, ky = 1, kz = 2;
+    // Interval traversal (coherent groups): bounds of the group's origins, reciprocal directions, tmin.
+    bool coherent = false;
+    float oxlo = 0, oxhi = 0, oylo = 0, oyhi = 0, ozlo = 0, ozhi = 0;
+    float ixlo = 0, ixhi = 0, iylo = 0, iyhi = 0, izlo = 0, izhi = 0, tminlo = 0;
 
-    PacketTraversal(const WB& b, std::span<const Triangle<float>> t, unsigned min) noexcept : bvh(b), tris(t), min_rays(min) {}
+    bool interval;
+
+    PacketTraversal(const WB& b, std::span<const Triangle<float>> t, unsigned min, bool iv) noexcept
+        : bvh(b), tris(t), min_rays(min), interval(iv) {}
 
     /// Sets up lane k for ray r (traceable, box::robust's t_scale 1).
     void init_lane(int k, const Ray<float>& r, const box::robust::prepared<float>& pb) noexcept {
@@ -263,14 +298,31 @@ struct PacketTraversal {
             dz[k] = r.dir.z;
         }
     }
-    /// Copies the first lane of `group`'s ray data to every other lane (so no lane computes on garbage).
+    /// Copies the first lane of `group`'s ray data to every other lane (so no lane computes on garbage;
+    /// their tmax is -inf: they never hit and do not widen the group's tmax bound), and sets up the
+    /// interval bounds: `coherent` when no reciprocal direction component is infinite.
     void fill_others(std::uint32_t group) noexcept {
         const int f = std::countr_zero(group);
+        oxlo = oxhi = ox[f]; oylo = oyhi = oy[f]; ozlo = ozhi = oz[f];
+        ixlo = ixhi = ix[f]; iylo = iyhi = iy[f]; izlo = izhi = iz[f];
+        tminlo = tmin[f];
+        coherent = true;
+        constexpr float inf = std::numeric_limits<float>::infinity();
         for (int k = 0; k < N; ++k) {
-            if (group >> k & 1u) continue;
+            if (group >> k & 1u) {
+                oxlo = std::min(oxlo, ox[k]); oxhi = std::max(oxhi, ox[k]);
+                oylo = std::min(oylo, oy[k]); oyhi = std::max(oyhi, oy[k]);
+                ozlo = std::min(ozlo, oz[k]); ozhi = std::max(ozhi, oz[k]);
+                ixlo = std::min(ixlo, ix[k]); ixhi = std::max(ixhi, ix[k]);
+                iylo = std::min(iylo, iy[k]); iyhi = std::max(iyhi, iy[k]);
+                izlo = std::min(izlo, iz[k]); izhi = std::max(izhi, iz[k]);
+                tminlo = std::min(tminlo, tmin[k]);
+                coherent = coherent && std::abs(ix[k]) < inf && std::abs(iy[k]) < inf && std::abs(iz[k]) < inf;
+                continue;
+            }
             ox[k] = ox[f]; oy[k] = oy[f]; oz[k] = oz[f];
             ix[k] = ix[f]; iy[k] = iy[f]; iz[k] = iz[f];
-            tmin[k] = tmin[f]; tmax[k] = tmax[f];
+            tmin[k] = tmin[f]; tmax[k] = -inf;
             if constexpr (std::is_same_v<Tri, tri::watertight>) {
                 okx[k] = okx[f]; oky[k] = oky[f]; okz[k] = okz[f]; sx[k] = sx[f]; sy[k] = sy[f];
             } else {
@@ -279,45 +331,93 @@ struct PacketTraversal {
         }
     }
 
+    /// Slot s of node n against every ray (box::robust::test_octant lane by lane, the same operations as
+    /// WideBoxTest): the lanes that hit, their entry distances in te, the nearest entry among them.
+    template <int Oct>
+    DYNBVH_ALWAYS_INLINE std::uint32_t slot_rays(const WN& n, int s, float* te, float& nearest) const noexcept {
+        const R c = V::set1(2.0f * rounding_gamma<float>(3));   // box::robust::widen
+        const R inf = V::set1(std::numeric_limits<float>::infinity());
+        const R nx = V::set1(Oct & 1 ? n.hi_x[s] : n.lo_x[s]), fx = V::set1(Oct & 1 ? n.lo_x[s] : n.hi_x[s]);
+        const R ny = V::set1(Oct & 2 ? n.hi_y[s] : n.lo_y[s]), fy = V::set1(Oct & 2 ? n.lo_y[s] : n.hi_y[s]);
+        const R nz = V::set1(Oct & 4 ? n.hi_z[s] : n.lo_z[s]), fz = V::set1(Oct & 4 ? n.lo_z[s] : n.hi_z[s]);
+        std::uint32_t bits = 0;
+        R near = inf;
+        for (int h = 0; h < NS; ++h) {
+            const int o = h * V::n;
+            const R X = V::load(ox + o), Y = V::load(oy + o), Z = V::load(oz + o);
+            const R IX = V::load(ix + o), IY = V::load(iy + o), IZ = V::load(iz + o);
+            const R x0 = V::mul(V::sub(nx, X), IX), x1 = V::mul(V::sub(fx, X), IX);
+            const R y0 = V::mul(V::sub(ny, Y), IY), y1 = V::mul(V::sub(fy, Y), IY);
+            const R z0 = V::mul(V::sub(nz, Z), IZ), z1 = V::mul(V::sub(fz, Z), IZ);
+            const R tn = V::max(z0, V::max(y0, V::max(x0, V::load(tmin + o))));
+            R tf = V::min(z1, V::min(y1, V::min(x1, V::load(tmax + o))));
+            tf = V::add(tf, V::mul(c, V::abs(tf)));
+            const R hm = V::le(tn, tf);
+            V::store(te + o, tn);
+            near = V::min(near, select(hm, tn, inf));
+            bits |= V::bits(hm) << o;
+        }
+        nearest = hmin(near);   // (may include a ray outside the caller's mask: only the visit order depends on it)
+        return bits;
+    }
+
     /// Child slots of node n hit by rays of `m`: per slot the ray mask, the entry distances (into
     /// te[slot]) and the nearest entry among those rays. Returns the number of hit slots (in slot[]).
     template <int Oct>
     DYNBVH_ALWAYS_INLINE int test_node(const WN& n, std::uint32_t m, int* slot, std::uint32_t* smask, float* snear,
                                        float (*te)[NZ]) const noexcept {
-        const R c = V::set1(2.0f * rounding_gamma<float>(3));   // box::robust::widen
-        const R inf = V::set1(std::numeric_limits<float>::infinity());
         int hits = 0;
         for (int s = 0; s < W; ++s) {
             if (n.empty_slot(s)) continue;
-            const R nx = V::set1(Oct & 1 ? n.hi_x[s] : n.lo_x[s]), fx = V::set1(Oct & 1 ? n.lo_x[s] : n.hi_x[s]);
-            const R ny = V::set1(Oct & 2 ? n.hi_y[s] : n.lo_y[s]), fy = V::set1(Oct & 2 ? n.lo_y[s] : n.hi_y[s]);
-            const R nz = V::set1(Oct & 4 ? n.hi_z[s] : n.lo_z[s]), fz = V::set1(Oct & 4 ? n.lo_z[s] : n.hi_z[s]);
-            std::uint32_t bits = 0;
-            R near = inf;
-            for (int h = 0; h < NS; ++h) {
-                const int o = h * V::n;
-                // box::robust::test_octant, lane by lane (the same operations as WideBoxTest)
-                const R X = V::load(ox + o), Y = V::load(oy + o), Z = V::load(oz + o);
-                const R IX = V::load(ix + o), IY = V::load(iy + o), IZ = V::load(iz + o);
-                const R x0 = V::mul(V::sub(nx, X), IX), x1 = V::mul(V::sub(fx, X), IX);
-                const R y0 = V::mul(V::sub(ny, Y), IY), y1 = V::mul(V::sub(fy, Y), IY);
-                const R z0 = V::mul(V::sub(nz, Z), IZ), z1 = V::mul(V::sub(fz, Z), IZ);
-                const R tn = V::max(z0, V::max(y0, V::max(x0, V::load(tmin + o))));
-                R tf = V::min(z1, V::min(y1, V::min(x1, V::load(tmax + o))));
-                tf = V::add(tf, V::mul(c, V::abs(tf)));
-                const R hm = V::le(tn, tf);
-                V::store(te[hits] + o, tn);
-                near = V::min(near, select(hm, tn, inf));
-                bits |= V::bits(hm) << o;
-            }
-            bits &= m;
+            const std::uint32_t bits = slot_rays<Oct>(n, s, te[hits], snear[hits]) & m;
             if (bits == 0) continue;
             slot[hits] = s;
             smask[hits] = bits;
-            snear[hits] = hmin(near);   // (may include a ray outside m: only the visit order depends on it)
             ++hits;
         }
         return hits;
+    }
+
+    /// The largest tmax of the group's unfinished rays (the others hold -inf).
+    DYNBVH_ALWAYS_INLINE float tmax_bound() const noexcept {
+        R m = V::load(tmax);
+        for (int h = 1; h < NS; ++h) m = V::max(m, V::load(tmax + h * V::n));
+        return hmax(m);
+    }
+
+    /// All W slots of node n against the whole group at once by interval arithmetic over the group's
+    /// origins and reciprocal directions (every ray of a coherent group shares the octant Oct and has
+    /// finite reciprocals): a slot any ray of the group hits under box::robust::test_octant passes,
+    /// because each rounded operation is monotone, so the bounds computed from the interval ends bound
+    /// every ray's own rounded entry from below and exit from above (tmax_hi: the largest tmax).
+    /// tn[slot] gets the lower bound of the entry distances. The few slots that pass are then tested
+    /// ray by ray only where it pays (leaves).
+    template <int Oct>
+    DYNBVH_ALWAYS_INLINE unsigned test_node_interval(const WN& n, float tmax_hi, float* tn) const noexcept {
+        using B = lanes_for<W>;
+        using BR = typename B::reg;
+        const BR c = B::set1(2.0f * rounding_gamma<float>(3));
+        // axis: near plane entry lower bound t0 and far plane exit upper bound t1 over the intervals
+        auto axis = [](BR lo, BR hi, float olo, float ohi, float ilo, float ihi, bool neg, BR& t0, BR& t1) {
+            const BR a = neg ? B::sub(hi, B::set1(olo)) : B::sub(lo, B::set1(ohi));   // near - o, at its smallest t
+            const BR b = neg ? B::sub(lo, B::set1(ohi)) : B::sub(hi, B::set1(olo));   // far - o, at its largest t
+            const BR il = B::set1(ilo), ih = B::set1(ihi);
+            t0 = B::min(B::mul(a, il), B::mul(a, ih));
+            t1 = B::max(B::mul(b, il), B::mul(b, ih));
+        };
+        unsigned mask = 0;
+        for (int h = 0; h < W; h += B::n) {
+            BR x0, x1, y0, y1, z0, z1;
+            axis(B::load(n.lo_x + h), B::load(n.hi_x + h), oxlo, oxhi, ixlo, ixhi, (Oct & 1) != 0, x0, x1);
+            axis(B::load(n.lo_y + h), B::load(n.hi_y + h), oylo, oyhi, iylo, iyhi, (Oct & 2) != 0, y0, y1);
+            axis(B::load(n.lo_z + h), B::load(n.hi_z + h), ozlo, ozhi, izlo, izhi, (Oct & 4) != 0, z0, z1);
+            const BR t_n = B::max(z0, B::max(y0, B::max(x0, B::set1(tminlo))));
+            BR t_f = B::min(z1, B::min(y1, B::min(x1, B::set1(tmax_hi))));
+            t_f = B::add(t_f, B::mul(c, B::abs(t_f)));
+            B::store(tn + h, t_n);
+            mask |= B::le_mask(t_n, t_f) << h;
+        }
+        return mask;
     }
 
     /// Lanes of `m` whose box entry `te` is not beyond their tmax (Box::before, lane by lane).
@@ -340,6 +440,7 @@ struct PacketTraversal {
         if constexpr (AnyHit) {
             hit[k].prim = prim;
             alive &= ~(std::uint32_t(1) << k);
+            tmax[k] = -std::numeric_limits<float>::infinity();   // done: out of the group's tmax bound
         } else {
             tmax[k] = t;
             best[k] = prim;
@@ -545,16 +646,92 @@ struct PacketTraversal {
         }
     }
 
+    /// The interval traversal of a coherent group: inner nodes are tested for the whole group at once
+    /// (test_node_interval) and entered by every unfinished ray; leaf slots are tested ray by ray, and
+    /// only the rays that hit a leaf's box test its triangles. Conservative at every step, so each ray
+    /// gets its single-ray answer (extra visits cannot change an order-independent answer).
+    template <int Oct>
+    bool run_interval(std::uint32_t group, IntervalEntry<I>* stack, std::size_t cap) {
+        using IE = IntervalEntry<I>;
+        alive = group;
+        std::size_t sp = 0;
+        I cur = 0, cur_count = 0;
+        std::uint32_t m = group;
+        alignas(64) float tn[WZ];
+        alignas(64) float te[NZ];
+        int order[WZ];
+        IE found[WZ];
+        for (;;) {
+            if constexpr (AnyHit) m &= alive;
+            if (m == 0) {
+            } else if (cur_count == 0) {
+                const WN& n = bvh.nodes[cur];
+                unsigned mask = test_node_interval<Oct>(n, tmax_bound(), tn);
+                int nh = 0;
+                for (; mask != 0; mask &= mask - 1) {
+                    const int s = std::countr_zero(mask);
+                    std::uint32_t sm = alive;
+                    float near = tn[s];
+                    if (n.count[s] != 0) {   // a leaf: only the rays that hit its box
+                        sm &= slot_rays<Oct>(n, s, te, near);
+                        if (sm == 0) continue;
+                    }
+                    found[nh] = IE{n.child[s], n.count[s], sm, near};
+                    order[nh] = nh;
+                    ++nh;
+                }
+                if (nh != 0) {
+                    for (int i = 1; i < nh; ++i)
+                        for (int j = i; j > 0 && found[order[j]].tentry < found[order[j - 1]].tentry; --j) std::swap(order[j], order[j - 1]);
+                    if (sp + std::size_t(nh) > cap) [[unlikely]] return false;
+                    for (int i = nh - 1; i > 0; --i) stack[sp++] = found[order[i]];
+                    const IE& e = found[order[0]];
+                    cur = e.child;
+                    cur_count = e.count;
+                    m = e.mask;
+                    continue;
+                }
+            } else {
+                test_leaf_packet(cur, cur_count, m);
+            }
+            // Pop the next entry some of whose rays may still find a closer hit there.
+            for (;;) {
+                if constexpr (AnyHit)
+                    if (alive == 0) return true;
+                if (sp == 0) return true;
+                const IE& e = stack[--sp];
+                std::uint32_t em = e.mask;
+                if constexpr (AnyHit) em &= alive;
+                if (em == 0) continue;
+                if (!box::robust::before(e.tentry, tmax_bound())) continue;
+                cur = e.child;
+                cur_count = e.count;
+                m = em;
+                break;
+            }
+        }
+    }
+
     /// Traces `group` (octant Oct), on the fixed stack or, for a tree deeper than it, on the heap.
     template <int Oct>
     void trace(std::uint32_t group) {
         fill_others(group);
         bool ok;
-        if (bvh.depth < fixed_levels) {
+        const bool fits = bvh.depth < fixed_levels;
+        const std::size_t heap_cap = std::size_t(W - 1) * (bvh.nodes.size() + 1) + 1;
+        if (coherent && interval) {
+            if (fits) {
+                IntervalEntry<I> stack[fixed_cap];
+                ok = run_interval<Oct>(group, stack, fixed_cap);
+            } else {
+                std::vector<IntervalEntry<I>> heap(heap_cap);
+                ok = run_interval<Oct>(group, heap.data(), heap.size());
+            }
+        } else if (fits) {
             Entry stack[fixed_cap];
             ok = run<Oct>(group, stack, fixed_cap);
         } else {
-            std::vector<Entry> heap(std::size_t(W - 1) * (bvh.nodes.size() + 1) + 1);
+            std::vector<Entry> heap(heap_cap);
             ok = run<Oct>(group, heap.data(), heap.size());
         }
         if (!ok) [[unlikely]]   // the tree is deeper than its depth field: every ray of the group alone
@@ -607,7 +784,7 @@ void packet_traverse(const WideBvh<WN, P>& bvh, std::span<const Triangle<float>>
         out[k] = single_lane<Policy, AnyHit>(bvh, tris, packet.ray(k));
     }
     if (ng == 0) return;
-    PT st(bvh, tris, cfg.min_rays);
+    PT st(bvh, tris, cfg.min_rays, cfg.interval);
     for (int gi = 0; gi < ng; ++gi) {
         const std::uint32_t g = groups[gi];
         for (std::uint32_t c = g; c != 0; c &= c - 1) {
