@@ -16,25 +16,35 @@
 /// empty intervals included. Inactive lanes get the miss value (Hit{}: t = +inf, u = v = 0, prim =
 /// invalid_prim) from `intersect` and a 0 bit from `occluded`. This holds because the single-ray answer
 /// does not depend on the order in which boxes are visited: box::robust never culls a box holding the
-/// closest hit, and an exact tie goes to the larger triangle index (detail::replaces_hit).
+/// closest hit, and an exact tie goes to the larger triangle index (detail::replaces_hit). (Where
+/// tri::watertight's documented distance limit is exceeded - triangles smaller than about 1e-6 of their
+/// distance from the origin, intersect.hpp - a hit can lie outside its box by rounding; the single-ray
+/// answer then depends on the visit order, as a binary and a wide tree can disagree, and so can a packet.)
 ///
-/// Traversal (float trees, box::robust, with SSE; detail::PacketTraversal): the active rays are grouped
-/// by direction octant (and, for tri::watertight, dominant axis); a group of at least
-/// `PacketConfig::min_rays` rays is traced as one packet, the others ray by ray. At a node each
-/// non-empty child box is tested against every ray of the packet at once (SIMD across rays, AVX 8 lanes
-/// per step where compiled in, else SSE 4; the same operations as box::robust), giving a ray mask and
-/// entry distances per child; hit children are visited nearest first (by the packet's nearest entry),
-/// the others pushed with their masks and per-ray entries, and skipped ray by ray once those rays know
-/// a closer hit. Block leaves (prim::blocks) test each triangle against all rays of the packet at once:
-/// tri::watertight with the SIMD float filter of the block test (detail::WatertightFilter, the same
-/// forward error bound) and the exact scalar test on each kept ray with that ray's tmax;
-/// tri::moller_trumbore with the scalar test's operations lane by lane. Index and copied leaves test
-/// ray by ray. Once fewer than `min_rays` rays of the packet remain in a subtree, each finishes it
-/// with the single-ray traversal from that node (detail::wide_traverse_octant).
+/// Traversal (float trees, box::robust, with SSE; detail::PacketTraversal): the packet's set-up is SIMD
+/// across its rays (validity, reciprocal directions, octants, dominant axes); the triangle test's
+/// per-ray set-up waits for a ray's first candidate triangle. The active rays are grouped by direction
+/// octant (and, for tri::watertight, dominant axis); a group of at least `PacketConfig::min_rays` rays
+/// is traced as one packet, the others ray by ray. A coherent group (no direction component exactly 0)
+/// tests the W child boxes of an inner node for all its rays at once by interval arithmetic over the
+/// group's origins and reciprocal directions (one SIMD test per node, conservative: every box any of its
+/// rays hits passes) and enters the inner children with all its rays; leaf boxes are tested ray by ray
+/// (SIMD across rays, box::robust's operations), and only the rays that hit a leaf's box test its
+/// triangles. Other groups (and PacketConfig::interval = false) test every child box ray by ray, keep a
+/// ray mask and per-ray entry distances per stack entry, and once fewer than `min_rays` rays remain in a
+/// subtree each finishes it with the single-ray traversal from that node (Benthin et al.'s hybrid;
+/// detail::wide_traverse_octant). Children are visited nearest first (the packet's nearest entry), and
+/// stack entries are skipped once none of their rays can find a closer hit there.
+/// Leaves: block leaves (prim::blocks) and index leaves test each triangle against all rays of the
+/// packet at once: tri::watertight with the SIMD float filter of the block test (detail::WatertightFilter,
+/// the same forward error bound per (ray, triangle) pair) and the exact scalar test on each kept ray with
+/// that ray's tmax; tri::moller_trumbore with the scalar test's operations lane by lane (bit for bit as
+/// long as neither side is FMA-contracted, as for the block test).
 /// Other cases (double trees, box::fast, -DDYNBVH_NO_SIMD, non-x86): a loop of single-ray queries, which
 /// gives the same answers by construction. (box::fast is not conservative, so its answers could depend
 /// on the visit order: its packets are traced ray by ray.)
 /// Cost: no allocation unless the tree is deeper than 32 wide levels (then one heap stack per packet).
+/// Measured (bench_trace, primary rays, 8-wide block trees): see the README / the bench's packet rows.
 #pragma once
 
 #include <algorithm>
@@ -236,6 +246,7 @@ struct PacketTraversal {
     static constexpr int W = WN::width;
     static constexpr int NS = N / V::n;   // SIMD steps per packet
     static constexpr std::size_t NZ = std::size_t(N), WZ = std::size_t(W);   // (array bounds)
+    static constexpr std::uint32_t step_lanes = (std::uint32_t(1) << V::n) - 1u;   // one SIMD step's lanes
     using WB = WideBvh<WN, P>;
     using Policy = trace::policy<box::robust, Tri>;
     using TriPrepared = typename Tri::template prepared<float>;
@@ -245,90 +256,157 @@ struct PacketTraversal {
 
     const WB& bvh;
     std::span<const Triangle<float>> tris;
+    const RayPacket<float, N>& pk;   // origins, directions and tmin are read from the packet itself
     unsigned min_rays;
-    // per-lane ray state (lanes outside the group hold harmless copies)
-    alignas(64) float ox[NZ], oy[NZ], oz[NZ], ix[NZ], iy[NZ], iz[NZ], tmin[NZ], tmax[NZ];
-    alignas(64) float okx[NZ], oky[NZ], okz[NZ], sx[NZ], sy[NZ];   // watertight: origin along kx, ky, kz; shear
-    alignas(64) float dx[NZ], dy[NZ], dz[NZ];                     // moller_trumbore: direction
+    bool interval;
+    // per-lane state (lanes outside the current group hold whatever; every test is masked)
+    const float* ox = pk.org_x;
+    const float* oy = pk.org_y;
+    const float* oz = pk.org_z;
+    const float* tmin = pk.tmin;
+    alignas(64) float ix[NZ], iy[NZ], iz[NZ];   // 1 / dir, correctly rounded (box::robust::prepared's inv)
+    alignas(64) float tmax[NZ];                 // the closest hit so far; -inf outside the group
+    alignas(64) float sx[NZ], sy[NZ];           // watertight: shear (prepared's sx, sy)
     std::uint32_t best[NZ];
     Hit<float> hit[NZ];
-    Ray<float> ray[NZ];
     union PtStore {
         PtStore() noexcept {}
         TriPrepared value;
-    } pt[NZ];
+    } pt[NZ];                                   // the triangle test's setup, made at a lane's first candidate
+    std::uint32_t have_pt = 0;
     std::uint32_t alive = 0;   // lanes not finished (any hit: not yet occluded)
     int kx = 0, ky = 1, kz = 2;
+    const float* okx = pk.org_x;   // watertight: origins along kx, ky, kz
+    const float* oky = pk.org_y;
+    const float* okz = pk.org_z;
+    // lane masks from classify(): direction sign per axis, dominant axis
+    std::uint32_t sign[3] = {0, 0, 0}, dominant[3] = {0, 0, 0};
     // Interval traversal (coherent groups): bounds of the group's origins, reciprocal directions, tmin.
     bool coherent = false;
     float oxlo = 0, oxhi = 0, oylo = 0, oyhi = 0, ozlo = 0, ozhi = 0;
     float ixlo = 0, ixhi = 0, iylo = 0, iyhi = 0, izlo = 0, izhi = 0, tminlo = 0;
 
-    bool interval;
+    PacketTraversal(const WB& b, std::span<const Triangle<float>> t, const RayPacket<float, N>& p, const PacketConfig& cfg) noexcept
+        : bvh(b), tris(t), pk(p), min_rays(cfg.min_rays), interval(cfg.interval) {}
 
-    PacketTraversal(const WB& b, std::span<const Triangle<float>> t, unsigned min, bool iv) noexcept
-        : bvh(b), tris(t), min_rays(min), interval(iv) {}
+    /// The lanes of `active` the packet takes: traceable rays without a direction component in
+    /// (0, FLT_MIN) (those are the rays box::robust::prepared does not scale: t_scale 1). Computes the
+    /// reciprocal directions (the same correctly rounded division as prepared) and the lane masks of
+    /// direction signs (sign bit, so -0 counts as negative, as prepared's octant) and dominant axes
+    /// (largest_axis of |dir|, as tri::watertight::prepared's kz).
+    std::uint32_t classify(std::uint32_t active) noexcept {
+        const R inf = V::set1(std::numeric_limits<float>::infinity()), zero = V::set1(0.0f), one = V::set1(1.0f);
+        const R small = V::set1(std::numeric_limits<float>::min());
+        std::uint32_t ok = 0;
+        for (int h = 0; h < NS; ++h) {
+            const int o = h * V::n;
+            const R dxr = V::load(pk.dir_x + o), dyr = V::load(pk.dir_y + o), dzr = V::load(pk.dir_z + o);
+            const R ax = V::abs(dxr), ay = V::abs(dyr), az = V::abs(dzr);
+            const R fin = V::band(V::band(V::band(V::lt(ax, inf), V::lt(ay, inf)), V::band(V::lt(az, inf), V::lt(V::abs(V::load(ox + o)), inf))),
+                                  V::band(V::lt(V::abs(V::load(oy + o)), inf), V::lt(V::abs(V::load(oz + o)), inf)));
+            const R nonzero = V::bor(V::bor(V::ne(dxr, zero), V::ne(dyr, zero)), V::ne(dzr, zero));
+            const R tiny = V::bor(V::bor(V::band(V::gt(ax, zero), V::lt(ax, small)), V::band(V::gt(ay, zero), V::lt(ay, small))),
+                                  V::band(V::gt(az, zero), V::lt(az, small)));
+            const R span = V::le(V::load(pk.tmin + o), V::load(pk.tmax + o));   // false for NaN
+            ok |= (V::bits(V::band(V::band(fin, nonzero), span)) & ~V::bits(tiny)) << o;
+            V::store(ix + o, V::div(one, dxr));
+            V::store(iy + o, V::div(one, dyr));
+            V::store(iz + o, V::div(one, dzr));
+            sign[0] |= V::bits(dxr) << o;
+            sign[1] |= V::bits(dyr) << o;
+            sign[2] |= V::bits(dzr) << o;
+            const std::uint32_t xy = V::bits(V::ge(ax, ay)) << o, xz = V::bits(V::ge(ax, az)) << o, yz = V::bits(V::ge(ay, az)) << o;
+            dominant[0] |= xy & xz;
+            dominant[1] |= ~xy & yz;
+        }
+        dominant[0] &= all_lanes<N>;
+        dominant[1] &= all_lanes<N>;
+        dominant[2] = all_lanes<N> & ~(dominant[0] | dominant[1]);
+        return ok & active;
+    }
 
-    /// Sets up lane k for ray r (traceable, box::robust's t_scale 1).
-    void init_lane(int k, const Ray<float>& r, const box::robust::prepared<float>& pb) noexcept {
-        ray[k] = r;
-        ox[k] = pb.org.x;
-        oy[k] = pb.org.y;
-        oz[k] = pb.org.z;
-        ix[k] = pb.inv.x;
-        iy[k] = pb.inv.y;
-        iz[k] = pb.inv.z;
-        tmin[k] = pb.tmin;
-        tmax[k] = r.tmax;
-        best[k] = invalid_prim;
-        hit[k] = Hit<float>{};
-        ::new (static_cast<void*>(&pt[k].value)) TriPrepared(r);
+    /// The lanes of `rest` with lane f's octant and dominant axis.
+    std::uint32_t same_kind(std::uint32_t rest, int f) const noexcept {
+        std::uint32_t g = rest;
+        for (int a = 0; a < 3; ++a) g &= (sign[a] >> f & 1u) ? sign[a] : ~sign[a];
+        if constexpr (std::is_same_v<Tri, tri::watertight>)
+            for (int a = 0; a < 3; ++a)
+                if (dominant[a] >> f & 1u) g &= dominant[a];
+        return g;
+    }
+
+    /// Prepares the group's lanes (tmax, best, hit; the shear for tri::watertight) and the interval
+    /// bounds (`coherent` when no reciprocal direction component of the group is infinite). Lanes
+    /// outside the group get tmax -inf: they never hit and do not widen the group's tmax bound.
+    void begin_group(std::uint32_t group) noexcept {
+        constexpr float inf = std::numeric_limits<float>::infinity();
+        const int f = std::countr_zero(group);
         if constexpr (std::is_same_v<Tri, tri::watertight>) {
-            kz = pt[k].value.kz;
+            kz = dominant[0] >> f & 1u ? 0 : dominant[1] >> f & 1u ? 1 : 2;
             kx = (kz + 1) % 3;
             ky = (kz + 2) % 3;
-            okx[k] = r.org[std::size_t(kx)];
-            oky[k] = r.org[std::size_t(ky)];
-            okz[k] = r.org[std::size_t(kz)];
-            sx[k] = pt[k].value.sx;
-            sy[k] = pt[k].value.sy;
-        } else {
-            dx[k] = r.dir.x;
-            dy[k] = r.dir.y;
-            dz[k] = r.dir.z;
+            const float* o[3] = {pk.org_x, pk.org_y, pk.org_z};
+            okx = o[kx];
+            oky = o[ky];
+            okz = o[kz];
         }
-    }
-    /// Copies the first lane of `group`'s ray data to every other lane (so no lane computes on garbage;
-    /// their tmax is -inf: they never hit and do not widen the group's tmax bound), and sets up the
-    /// interval bounds: `coherent` when no reciprocal direction component is infinite.
-    void fill_others(std::uint32_t group) noexcept {
-        const int f = std::countr_zero(group);
-        oxlo = oxhi = ox[f]; oylo = oyhi = oy[f]; ozlo = ozhi = oz[f];
-        ixlo = ixhi = ix[f]; iylo = iyhi = iy[f]; izlo = izhi = iz[f];
-        tminlo = tmin[f];
-        coherent = true;
-        constexpr float inf = std::numeric_limits<float>::infinity();
+        const float* d[3] = {pk.dir_x, pk.dir_y, pk.dir_z};
+        alignas(64) float gm[NZ];   // all bits set in the group's lanes
+        const float on = std::bit_cast<float>(~std::uint32_t(0));
         for (int k = 0; k < N; ++k) {
-            if (group >> k & 1u) {
-                oxlo = std::min(oxlo, ox[k]); oxhi = std::max(oxhi, ox[k]);
-                oylo = std::min(oylo, oy[k]); oyhi = std::max(oyhi, oy[k]);
-                ozlo = std::min(ozlo, oz[k]); ozhi = std::max(ozhi, oz[k]);
-                ixlo = std::min(ixlo, ix[k]); ixhi = std::max(ixhi, ix[k]);
-                iylo = std::min(iylo, iy[k]); iyhi = std::max(iyhi, iy[k]);
-                izlo = std::min(izlo, iz[k]); izhi = std::max(izhi, iz[k]);
-                tminlo = std::min(tminlo, tmin[k]);
-                coherent = coherent && std::abs(ix[k]) < inf && std::abs(iy[k]) < inf && std::abs(iz[k]) < inf;
+            if (!(group >> k & 1u)) {
+                tmax[k] = -inf;
+                gm[k] = 0.0f;
                 continue;
             }
-            ox[k] = ox[f]; oy[k] = oy[f]; oz[k] = oz[f];
-            ix[k] = ix[f]; iy[k] = iy[f]; iz[k] = iz[f];
-            tmin[k] = tmin[f]; tmax[k] = -inf;
+            gm[k] = on;
+            tmax[k] = pk.tmax[k];
+            best[k] = invalid_prim;
+            hit[k] = Hit<float>{};
             if constexpr (std::is_same_v<Tri, tri::watertight>) {
-                okx[k] = okx[f]; oky[k] = oky[f]; okz[k] = okz[f]; sx[k] = sx[f]; sy[k] = sy[f];
-            } else {
-                dx[k] = dx[f]; dy[k] = dy[f]; dz[k] = dz[f];
+                // tri::watertight::prepared's shear, the same operations
+                const double rcp_dz = 1.0 / double(d[kz][k]);
+                sx[k] = float(double(d[kx][k]) * rcp_dz);
+                sy[k] = float(double(d[ky][k]) * rcp_dz);
             }
         }
+        (void)f;
+        // the group's bounds: min / max over its lanes (the others masked to +-inf)
+        const R pinf = V::set1(inf), ninf = V::set1(-inf);
+        R lo[7], hi[7];
+        for (int i = 0; i < 7; ++i) {
+            lo[i] = pinf;
+            hi[i] = ninf;
+        }
+        const float* src[7] = {ox, oy, oz, ix, iy, iz, tmin};
+        for (int h = 0; h < NS; ++h) {
+            const int o = h * V::n;
+            const R g = V::load(gm + o);
+            for (int i = 0; i < 7; ++i) {
+                const R x = V::load(src[i] + o);
+                lo[i] = V::min(lo[i], select(g, x, pinf));
+                hi[i] = V::max(hi[i], select(g, x, ninf));
+            }
+        }
+        oxlo = hmin(lo[0]); oxhi = hmax(hi[0]);
+        oylo = hmin(lo[1]); oyhi = hmax(hi[1]);
+        ozlo = hmin(lo[2]); ozhi = hmax(hi[2]);
+        ixlo = hmin(lo[3]); ixhi = hmax(hi[3]);
+        iylo = hmin(lo[4]); iyhi = hmax(hi[4]);
+        izlo = hmin(lo[5]); izhi = hmax(hi[5]);
+        tminlo = hmin(lo[6]);
+        // interval traversal needs finite reciprocals (no direction component exactly 0)
+        coherent = std::abs(ixlo) < inf && std::abs(ixhi) < inf && std::abs(iylo) < inf && std::abs(iyhi) < inf &&
+                   std::abs(izlo) < inf && std::abs(izhi) < inf;
+    }
+
+    /// Lane k's triangle-test setup (made once per packet, at its first use).
+    DYNBVH_ALWAYS_INLINE const TriPrepared& prepared_lane(int k) noexcept {
+        if (!(have_pt >> k & 1u)) [[unlikely]] {
+            ::new (static_cast<void*>(&pt[k].value)) TriPrepared(pk.ray(k));
+            have_pt |= std::uint32_t(1) << k;
+        }
+        return pt[k].value;
     }
 
     /// Slot s of node n against every ray (box::robust::test_octant lane by lane, the same operations as
@@ -458,6 +536,7 @@ struct PacketTraversal {
             std::uint32_t rejected = 0;
             for (int h = 0; h < NS; ++h) {
                 const int o = h * V::n;
+                if (NS > 1 && (m >> o & step_lanes) == 0) continue;   // no ray of m in this step
                 const R OX = V::load(okx + o), OY = V::load(oky + o), OZ = V::load(okz + o);
                 const R SX = V::load(sx + o), SY = V::load(sy + o);
                 const auto va = F::shear(V::sub(ax, OX), V::sub(ay, OY), V::sub(az, OZ), SX, SY);
@@ -468,7 +547,7 @@ struct PacketTraversal {
             for (std::uint32_t c = m & ~rejected; c != 0; c &= c - 1) {
                 const int k = std::countr_zero(c);
                 float t, u, v;
-                if (!tri::watertight::test(pt[k].value, tr, tmax[k], t, u, v)) continue;
+                if (!tri::watertight::test(prepared_lane(k), tr, tmax[k], t, u, v)) continue;
                 if constexpr (!AnyHit)
                     if (!replaces_hit(t, tmax[k], prim, best[k])) continue;
                 take(k, t, u, v, prim);
@@ -485,7 +564,8 @@ struct PacketTraversal {
             std::uint32_t ok = 0;
             for (int h = 0; h < NS; ++h) {
                 const int o = h * V::n;
-                const R DX = V::load(dx + o), DY = V::load(dy + o), DZ = V::load(dz + o);
+                if (NS > 1 && (m >> o & step_lanes) == 0) continue;   // no ray of m in this step
+                const R DX = V::load(pk.dir_x + o), DY = V::load(pk.dir_y + o), DZ = V::load(pk.dir_z + o);
                 const R pvx = V::sub(V::mul(DY, e2z), V::mul(DZ, e2y));
                 const R pvy = V::sub(V::mul(DZ, e2x), V::mul(DX, e2z));
                 const R pvz = V::sub(V::mul(DX, e2y), V::mul(DY, e2x));
@@ -517,7 +597,7 @@ struct PacketTraversal {
             for (std::uint32_t c = m; c != 0; c &= c - 1) {
                 const int k = std::countr_zero(c);
                 float t, u, v;
-                if (!Tri::test(pt[k].value, tr, tmax[k], t, u, v)) continue;
+                if (!Tri::test(prepared_lane(k), tr, tmax[k], t, u, v)) continue;
                 if constexpr (!AnyHit)
                     if (!replaces_hit(t, tmax[k], prim, best[k])) continue;
                 take(k, t, u, v, prim);
@@ -557,7 +637,8 @@ struct PacketTraversal {
     /// Lane k finishes the subtree (node, count) with the single-ray traversal, from its state.
     template <int Oct>
     DYNBVH_NOINLINE void finish_lane(int k, I node, I count) {
-        const box::robust::prepared<float> pb(ray[k]);
+        const Ray<float> r = pk.ray(k);
+        const box::robust::prepared<float> pb(r);
         const WideBoxTest<box::robust, float, W> wb(pb);
         using SE = WideStackEntry<I, float>;
         constexpr std::size_t cap = std::size_t(W - 1) * std::size_t(max_depth);
@@ -565,14 +646,14 @@ struct PacketTraversal {
         bool done;
         if (bvh.depth < max_depth) {
             SE stack[cap];
-            done = wide_traverse_octant<Policy, AnyHit, Oct>(bvh, tris, ray[k], 1.0f, wb, h, stack, cap, node, count, tmax[k], best[k]);
+            done = wide_traverse_octant<Policy, AnyHit, Oct>(bvh, tris, r, 1.0f, wb, h, stack, cap, node, count, tmax[k], best[k]);
         } else {
             done = false;
         }
         if (!done) {   // a tree deeper than its depth field says: a stack that cannot overflow
             std::vector<SE> heap(std::size_t(W - 1) * (bvh.nodes.size() + 1));
             h = hit[k];
-            wide_traverse_octant<Policy, AnyHit, Oct>(bvh, tris, ray[k], 1.0f, wb, h, heap.data(), heap.size(), node, count, tmax[k],
+            wide_traverse_octant<Policy, AnyHit, Oct>(bvh, tris, r, 1.0f, wb, h, heap.data(), heap.size(), node, count, tmax[k],
                                                        best[k]);
         }
         if constexpr (AnyHit) {
@@ -661,12 +742,13 @@ struct PacketTraversal {
         alignas(64) float te[NZ];
         int order[WZ];
         IE found[WZ];
+        float thi = tmax_bound();   // the group's largest tmax, renewed after each leaf
         for (;;) {
             if constexpr (AnyHit) m &= alive;
             if (m == 0) {
             } else if (cur_count == 0) {
                 const WN& n = bvh.nodes[cur];
-                unsigned mask = test_node_interval<Oct>(n, tmax_bound(), tn);
+                unsigned mask = test_node_interval<Oct>(n, thi, tn);
                 int nh = 0;
                 for (; mask != 0; mask &= mask - 1) {
                     const int s = std::countr_zero(mask);
@@ -693,6 +775,7 @@ struct PacketTraversal {
                 }
             } else {
                 test_leaf_packet(cur, cur_count, m);
+                thi = tmax_bound();
             }
             // Pop the next entry some of whose rays may still find a closer hit there.
             for (;;) {
@@ -703,7 +786,7 @@ struct PacketTraversal {
                 std::uint32_t em = e.mask;
                 if constexpr (AnyHit) em &= alive;
                 if (em == 0) continue;
-                if (!box::robust::before(e.tentry, tmax_bound())) continue;
+                if (!box::robust::before(e.tentry, thi)) continue;
                 cur = e.child;
                 cur_count = e.count;
                 m = em;
@@ -715,7 +798,6 @@ struct PacketTraversal {
     /// Traces `group` (octant Oct), on the fixed stack or, for a tree deeper than it, on the heap.
     template <int Oct>
     void trace(std::uint32_t group) {
-        fill_others(group);
         bool ok;
         const bool fits = bvh.depth < fixed_levels;
         const std::size_t heap_cap = std::size_t(W - 1) * (bvh.nodes.size() + 1) + 1;
@@ -737,75 +819,52 @@ struct PacketTraversal {
         if (!ok) [[unlikely]]   // the tree is deeper than its depth field: every ray of the group alone
             for (std::uint32_t c = group; c != 0; c &= c - 1) {
                 const int k = std::countr_zero(c);
-                hit[k] = single_lane<Policy, AnyHit>(bvh, tris, ray[k]);
+                hit[k] = single_lane<Policy, AnyHit>(bvh, tris, pk.ray(k));
                 best[k] = hit[k].prim;
             }
     }
 };
 
-/// Groups the active lanes, traces each group as a packet or ray by ray; out[k] gets lane k's answer.
+/// Groups the active lanes by octant (and dominant axis), traces each group large enough as a packet
+/// and the other lanes ray by ray; out[k] gets lane k's answer.
 template <class Tri, bool AnyHit, class WN, class P, int N>
 void packet_traverse(const WideBvh<WN, P>& bvh, std::span<const Triangle<float>> tris, const RayPacket<float, N>& packet,
-                     std::uint32_t active, const PacketConfig& cfg, Hit<float>* out) {
+                     std::uint32_t active, const PacketConfig& cfg, HitPacket<float, N>& out) {
     using Policy = trace::policy<box::robust, Tri>;
     using PT = PacketTraversal<Tri, AnyHit, WN, P, N>;
     if (bvh.nodes.empty()) return;
-    // Classify: rays the packet takes (traceable, no direction scaling) get a key (octant, dominant axis).
-    int key[std::size_t(N)];
-    std::uint32_t packable = 0;
-    alignas(64) unsigned char pb_store[std::size_t(N)][sizeof(box::robust::prepared<float>)];
-    for (std::uint32_t c = active; c != 0; c &= c - 1) {
-        const int k = std::countr_zero(c);
-        const Ray<float> r = packet.ray(k);
-        if (!traceable(r)) continue;   // single ray below (it misses)
-        const auto* pb = ::new (static_cast<void*>(pb_store[k])) box::robust::prepared<float>(r);
-        if (pb->t_scale != 1.0f) continue;
-        int kzk = 0;
-        if constexpr (std::is_same_v<Tri, tri::watertight>)
-            kzk = largest_axis(Vec3<float>{std::abs(r.dir.x), std::abs(r.dir.y), std::abs(r.dir.z)});
-        key[k] = pb->octant | kzk << 3;
-        packable |= std::uint32_t(1) << k;
-    }
-    // Rays alone: the few of a kind, and every ray the packet does not take.
-    std::uint32_t alone = active & ~packable;
-    std::uint32_t groups[std::size_t(N)];
-    int ng = 0;
+    PT st(bvh, tris, packet, cfg);
+    const std::uint32_t packable = st.classify(active);
+    std::uint32_t alone = active & ~packable;   // every ray the packet does not take, and the few of a kind
     for (std::uint32_t rest = packable; rest != 0;) {
         const int f = std::countr_zero(rest);
-        std::uint32_t g = 0;
-        for (std::uint32_t c = rest; c != 0; c &= c - 1)
-            if (key[std::countr_zero(c)] == key[f]) g |= std::uint32_t(1) << std::countr_zero(c);
+        const std::uint32_t g = st.same_kind(rest, f);
         rest &= ~g;
-        if (unsigned(std::popcount(g)) < std::max(cfg.min_rays, 2u)) alone |= g;
-        else groups[ng++] = g;
+        if (unsigned(std::popcount(g)) < std::max(cfg.min_rays, 2u)) {
+            alone |= g;
+            continue;
+        }
+        st.begin_group(g);
+        dispatch_octant(int(st.sign[0] >> f & 1u) | int(st.sign[1] >> f & 1u) << 1 | int(st.sign[2] >> f & 1u) << 2,
+                        [&](auto o) { st.template trace<decltype(o)::value>(g); });
+        for (std::uint32_t c = g; c != 0; c &= c - 1) {
+            const int k = std::countr_zero(c);
+            Hit<float> h = st.hit[k];
+            if constexpr (!AnyHit) h.prim = st.best[k];
+            out.set(k, h);
+        }
     }
     for (std::uint32_t c = alone; c != 0; c &= c - 1) {
         const int k = std::countr_zero(c);
-        out[k] = single_lane<Policy, AnyHit>(bvh, tris, packet.ray(k));
-    }
-    if (ng == 0) return;
-    PT st(bvh, tris, cfg.min_rays, cfg.interval);
-    for (int gi = 0; gi < ng; ++gi) {
-        const std::uint32_t g = groups[gi];
-        for (std::uint32_t c = g; c != 0; c &= c - 1) {
-            const int k = std::countr_zero(c);
-            st.init_lane(k, packet.ray(k), *std::launder(reinterpret_cast<const box::robust::prepared<float>*>(pb_store[k])));
-        }
-        const int oct = key[std::countr_zero(g)] & 7;
-        dispatch_octant(oct, [&](auto o) { st.template trace<decltype(o)::value>(g); });
-        for (std::uint32_t c = g; c != 0; c &= c - 1) {
-            const int k = std::countr_zero(c);
-            out[k] = st.hit[k];
-            if constexpr (!AnyHit) out[k].prim = st.best[k];
-        }
+        out.set(k, single_lane<Policy, AnyHit>(bvh, tris, packet.ray(k)));
     }
 }
 #endif  // DYNBVH_SSE
 
-/// Packet query: lane k of `out` gets the single-ray answer for every active lane, Hit{} elsewhere.
+/// Packet query: lane k of `out` (all misses on entry) gets the single-ray answer of every active lane.
 template <class Policy, bool AnyHit, class WN, class P, int N, class S = typename WN::scalar_type>
 void packet_query(const WideBvh<WN, P>& bvh, std::span<const Triangle<S>> tris, const RayPacket<S, N>& packet, std::uint32_t active,
-                  const PacketConfig& cfg, Hit<S>* out) {
+                  const PacketConfig& cfg, HitPacket<S, N>& out) {
     active &= all_lanes<N>;
 #if defined(DYNBVH_SSE)
     if constexpr (std::is_same_v<S, float> && std::is_same_v<typename Policy::box_test, box::robust>) {
@@ -816,7 +875,7 @@ void packet_query(const WideBvh<WN, P>& bvh, std::span<const Triangle<S>> tris, 
     (void)cfg;
     for (std::uint32_t c = active; c != 0; c &= c - 1) {
         const int k = std::countr_zero(c);
-        out[k] = single_lane<Policy, AnyHit>(bvh, tris, packet.ray(k));
+        out.set(k, single_lane<Policy, AnyHit>(bvh, tris, packet.ray(k)));
     }
 }
 
@@ -834,10 +893,8 @@ HitPacket<typename WN::scalar_type, N> intersect(const WideBvh<WN, P>& bvh,
                                                  std::uint32_t active = all_lanes<N>, const PacketConfig& cfg = {}) {
     using S = typename WN::scalar_type;
     detail::check_triangles(bvh, tris.size(), "intersect", !WideBvh<WN, P>::precomputed);
-    Hit<S> out[std::size_t(N)];
-    detail::packet_query<Policy, false>(bvh, tris, packet, active, cfg, out);
     HitPacket<S, N> res;
-    for (int k = 0; k < N; ++k) res.set(k, out[k]);
+    detail::packet_query<Policy, false>(bvh, tris, packet, active, cfg, res);
     return res;
 }
 
@@ -849,11 +906,9 @@ std::uint32_t occluded(const WideBvh<WN, P>& bvh, std::type_identity_t<std::span
                        const PacketConfig& cfg = {}) {
     using S = typename WN::scalar_type;
     detail::check_triangles(bvh, tris.size(), "occluded", !WideBvh<WN, P>::precomputed);
-    Hit<S> out[std::size_t(N)];
-    detail::packet_query<Policy, true>(bvh, tris, packet, active, cfg, out);
-    std::uint32_t m = 0;
-    for (int k = 0; k < N; ++k) m |= out[k].prim != invalid_prim ? std::uint32_t(1) << k : 0u;
-    return m;
+    HitPacket<S, N> res;
+    detail::packet_query<Policy, true>(bvh, tris, packet, active, cfg, res);
+    return res.hit_mask();
 }
 
 } // namespace dynbvh
