@@ -224,6 +224,21 @@ struct alignas(64) PacketEntry {
     std::uint32_t mask;
 };
 
+/// Triangle sources of PacketTraversal::test_triangle: lane j of a block, read in place ...
+template <int L>
+struct BlockLane {
+    const TriangleBlock<L>& b;
+    int j;
+    DYNBVH_ALWAYS_INLINE float c(int vertex, std::size_t axis) const noexcept { return b.v[vertex][axis][j]; }
+    DYNBVH_ALWAYS_INLINE Triangle<float> get() const noexcept { return b.triangle(j); }
+};
+/// ... or a whole triangle.
+struct WholeTriangle {
+    const Triangle<float>& t;
+    DYNBVH_ALWAYS_INLINE float c(int vertex, std::size_t axis) const noexcept { return (vertex == 0 ? t.p0 : vertex == 1 ? t.p1 : t.p2)[axis]; }
+    DYNBVH_ALWAYS_INLINE Triangle<float> get() const noexcept { return t; }
+};
+
 /// One stack entry of the interval traversal: a node or leaf slot, the rays it is for and a lower
 /// bound of their entry distances.
 template <class I>
@@ -525,14 +540,17 @@ struct PacketTraversal {
         }
     }
 
-    /// Triangle `tri` (user index prim) against the rays of m.
-    DYNBVH_ALWAYS_INLINE void test_triangle(const Triangle<float>& tr, std::uint32_t prim, std::uint32_t m) noexcept {
+    /// A triangle (user index prim) against the rays of m. `src.c(vertex, axis)` reads a coordinate,
+    /// `src.get()` the whole triangle (block lanes are read in place; the triangle is rebuilt only for
+    /// the scalar confirmations).
+    template <class Src>
+    DYNBVH_ALWAYS_INLINE void test_triangle(const Src& src, std::uint32_t prim, std::uint32_t m) noexcept {
         if constexpr (std::is_same_v<Tri, tri::watertight>) {
             using F = WatertightFilter<V>;
             const std::size_t X = std::size_t(kx), Y = std::size_t(ky), Z = std::size_t(kz);
-            const R ax = V::set1(tr.p0[X]), ay = V::set1(tr.p0[Y]), az = V::set1(tr.p0[Z]);
-            const R bx = V::set1(tr.p1[X]), by = V::set1(tr.p1[Y]), bz = V::set1(tr.p1[Z]);
-            const R cx = V::set1(tr.p2[X]), cy = V::set1(tr.p2[Y]), cz = V::set1(tr.p2[Z]);
+            const R ax = V::set1(src.c(0, X)), ay = V::set1(src.c(0, Y)), az = V::set1(src.c(0, Z));
+            const R bx = V::set1(src.c(1, X)), by = V::set1(src.c(1, Y)), bz = V::set1(src.c(1, Z));
+            const R cx = V::set1(src.c(2, X)), cy = V::set1(src.c(2, Y)), cz = V::set1(src.c(2, Z));
             std::uint32_t rejected = 0;
             for (int h = 0; h < NS; ++h) {
                 const int o = h * V::n;
@@ -544,7 +562,10 @@ struct PacketTraversal {
                 const auto vc = F::shear(V::sub(cx, OX), V::sub(cy, OY), V::sub(cz, OZ), SX, SY);
                 rejected |= V::bits(F::rejects(va, vb, vc)) << o;
             }
-            for (std::uint32_t c = m & ~rejected; c != 0; c &= c - 1) {
+            std::uint32_t cand = m & ~rejected;
+            if (cand == 0) return;
+            const Triangle<float> tr = src.get();
+            for (std::uint32_t c = cand; c != 0; c &= c - 1) {
                 const int k = std::countr_zero(c);
                 float t, u, v;
                 if (!tri::watertight::test(prepared_lane(k), tr, tmax[k], t, u, v)) continue;
@@ -554,11 +575,12 @@ struct PacketTraversal {
             }
         } else if constexpr (std::is_same_v<Tri, tri::moller_trumbore>) {
             // the scalar test's operations lane by lane (vec.hpp's cross and dot, one division)
-            const float e1x_ = tr.p1.x - tr.p0.x, e1y_ = tr.p1.y - tr.p0.y, e1z_ = tr.p1.z - tr.p0.z;
-            const float e2x_ = tr.p2.x - tr.p0.x, e2y_ = tr.p2.y - tr.p0.y, e2z_ = tr.p2.z - tr.p0.z;
+            const float p0x_ = src.c(0, 0), p0y_ = src.c(0, 1), p0z_ = src.c(0, 2);
+            const float e1x_ = src.c(1, 0) - p0x_, e1y_ = src.c(1, 1) - p0y_, e1z_ = src.c(1, 2) - p0z_;
+            const float e2x_ = src.c(2, 0) - p0x_, e2y_ = src.c(2, 1) - p0y_, e2z_ = src.c(2, 2) - p0z_;
             const R e1x = V::set1(e1x_), e1y = V::set1(e1y_), e1z = V::set1(e1z_);
             const R e2x = V::set1(e2x_), e2y = V::set1(e2y_), e2z = V::set1(e2z_);
-            const R p0x = V::set1(tr.p0.x), p0y = V::set1(tr.p0.y), p0z = V::set1(tr.p0.z);
+            const R p0x = V::set1(p0x_), p0y = V::set1(p0y_), p0z = V::set1(p0z_);
             const R zero = V::set1(0.0f), one = V::set1(1.0f);
             alignas(64) float tt[NZ], uu[NZ], vv[NZ];
             std::uint32_t ok = 0;
@@ -594,6 +616,7 @@ struct PacketTraversal {
                 take(k, t, uu[k], vv[k], prim);
             }
         } else {
+            const Triangle<float> tr = src.get();
             for (std::uint32_t c = m; c != 0; c &= c - 1) {
                 const int k = std::countr_zero(c);
                 float t, u, v;
@@ -618,7 +641,7 @@ struct PacketTraversal {
                         m &= alive;
                         if (m == 0) return;
                     }
-                    test_triangle(b.triangle(j), b.prim[j], m);
+                    test_triangle(BlockLane<BL>{b, j}, b.prim[j], m);
                 }
             }
         } else {
@@ -629,7 +652,7 @@ struct PacketTraversal {
                     m &= alive;
                     if (m == 0) return;
                 }
-                test_triangle(WB::precomputed ? lt[s] : lt[ids[s]], static_cast<std::uint32_t>(ids[s]), m);
+                test_triangle(WholeTriangle{WB::precomputed ? lt[s] : lt[ids[s]]}, static_cast<std::uint32_t>(ids[s]), m);
             }
         }
     }
