@@ -9,6 +9,7 @@
 // Scenes: the middle frame of the built-in cloth-ball, n-body and funnel (scene camera), `lattice`
 // (scenes/lattice.hpp: 101k long thin triangles of beams crossing the scene, turned off the axes), and
 // the Stanford bunny and dragon from DYNBVH_DATA_DIR when present (a camera that frames the mesh).
+// "mwide8 blk": morton_wide (the 8-wide tree straight from the sorted Morton codes) with block leaves.
 // Packets: 4x2 pixels (8 rays) or 4x4 (16) inside each 16x16 tile, coherent context for Embree; ours
 // ("... blk x8", "x16": packet.hpp on the block trees, trace::robust) beside them, checked to give the
 // single-ray column's hits ray for ray ("packets!=single" must be 0).
@@ -38,6 +39,7 @@
 #include <dynbvh/io/ply.hpp>
 #include <dynbvh/lbvh.hpp>
 #include <dynbvh/packet.hpp>
+#include <dynbvh/morton_wide.hpp>
 #include <dynbvh/ploc.hpp>
 #include <dynbvh/sah.hpp>
 #include <scenes/builtin.hpp>
@@ -249,6 +251,7 @@ int main(int argc, char** argv) {
         kbvh::Config<> kcfg;   // presplit (default budget) + PLOC r = 5
         kcfg.builder.leaves = bleaves;
         const auto kbk = make_wide_blocks<8>(kbvh::build(tris, kcfg, bex), tris, bex);
+        const auto mwk = make_wide_blocks(morton_wide::build<8>(tris, {}, bex), tris, bex);   // morton_wide.hpp
         const auto pw8b8 = make_wide_blocks<8, 8>(pl, tris, bex);
         const auto pw8b4 = make_wide_blocks<8, 4>(pl, tris, bex);
 
@@ -308,6 +311,7 @@ int main(int argc, char** argv) {
         add_packets("sah wide8 blk x8", our_packets(sbk, P8{}), P8{});
         add_packets("sah wide8 blk x16", our_packets(sbk, P16{}), P16{});
         add_packets("kbvh wide8 blk x16", our_packets(kbk, P16{}), P16{});
+        add_packets("mwide8 blk x16", our_packets(mwk, P16{}), P16{});
         const std::size_t first_ours = methods.size();   // methods[0], [1]: Embree LOW / MEDIUM rtcIntersect1
         add("lbvh binary", [&](const Rayf& r) { return intersect(lb, tris, r).prim; });
         add("lbvh wide", [&](const Rayf& r) { return intersect(lw, tris, r).prim; });
@@ -328,6 +332,8 @@ int main(int argc, char** argv) {
         add("ploc wide8 blk", [&](const Rayf& r) { return intersect(pbk, tris, r).prim; });
         add("sah wide8 blk", [&](const Rayf& r) { return intersect(sbk, tris, r).prim; });
         add("kbvh wide8 blk", [&](const Rayf& r) { return intersect(kbk, tris, r).prim; });
+        add("mwide8 blk", [&](const Rayf& r) { return intersect(mwk, tris, r).prim; });
+        add("mwide8 blk fast", [&](const Rayf& r) { return intersect<trace::fast>(mwk, tris, r).prim; });
         add("ploc wide8 blk fast", [&](const Rayf& r) { return intersect<trace::fast>(pbk, tris, r).prim; });
         add("sah wide8 blk fast", [&](const Rayf& r) { return intersect<trace::fast>(sbk, tris, r).prim; });
         add("ploc w8 blk8 dfl", [&](const Rayf& r) { return intersect(pw8b8, tris, r).prim; });
