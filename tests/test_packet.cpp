@@ -3,13 +3,14 @@
 // are misses; checked on every ray kind of the robustness suite (aimed at edges and vertices,
 // axis-parallel with +-0, grazing, origins on surfaces, far origins, tmin == tmax, NaN / inf / empty
 // rays) over the trees of every builder (8-wide with 8-lane blocks, 4-wide with 4-lane blocks, 8-wide
-// with index or copied leaves), full, partial and random masks, incoherent packets (random rays) and
-// coherent ones (tiles of camera rays), robust and Möller–Trumbore triangle tests and every
-// PacketConfig::min_rays from "always packets" to "always single rays". Exact ties (duplicated
-// triangles, shared edges hit exactly) equal brute force including the triangle index; occluded agrees
-// with intersect; rays from inside closed meshes at every vertex and edge never escape through packets;
-// trees deeper than the fixed stack. Built as test_packet (SSE / AVX as compiled), test_packet_sse
-// (-mno-avx) and test_packet_nosimd (-DDYNBVH_NO_SIMD: the single-ray loop).
+// with index or copied leaves), full, partial and random masks, incoherent packets (random rays, also
+// sorted by octant so that they take the packet path) and coherent ones (tiles of camera rays), robust
+// and Möller–Trumbore triangle tests, PacketConfig::min_rays from "always packets" to "always single
+// rays" and the interval traversal on and off. Exact ties (duplicated triangles, shared edges hit
+// exactly) equal brute force including the triangle index; occluded agrees with intersect; rays from
+// inside closed meshes at every vertex and edge never escape through packets; trees deeper than the
+// fixed stack. Built as test_packet (SSE / AVX as compiled), test_packet_sse (-mno-avx) and
+// test_packet_nosimd (-DDYNBVH_NO_SIMD: the single-ray loop).
 #include <doctest/doctest.h>
 
 #include <dynbvh/packet.hpp>
@@ -81,12 +82,13 @@ void check_packets(const WT& tree, std::span<const Trianglef> tris, std::span<co
     }
 }
 
-/// Every mask kind, N = 8 and 16, several min_rays, for Policy.
+/// Every mask kind, N = 8 and 16, several min_rays, interval traversal on and off, for Policy.
 template <class Policy, class WT>
 void check_all_masks(const WT& tree, std::span<const Trianglef> tris, std::span<const Rayf> rays, std::uint64_t seed, Tally& t) {
     Rng rng(seed);
-    for (const unsigned min_rays : {0u, 2u, 3u, 6u, 17u}) {
-        const PacketConfig cfg{.min_rays = min_rays};
+    for (const unsigned min_rays : {0u, 2u, 3u, 6u, 17u})
+      for (const bool interval : {true, false}) {
+        const PacketConfig cfg{.min_rays = min_rays, .interval = interval};
         check_packets<Policy, 8>(tree, tris, rays, [](std::size_t) { return ~std::uint32_t(0); }, cfg, t);
         check_packets<Policy, 16>(tree, tris, rays, [](std::size_t) { return ~std::uint32_t(0); }, cfg, t);
         check_packets<Policy, 8>(tree, tris, rays, [&](std::size_t) { return std::uint32_t(rng.next()); }, cfg, t);
@@ -263,7 +265,7 @@ TEST_CASE("packets: exact ties equal brute force including the triangle (larger 
                 RayPacket<float, 16> p;
                 for (int k = 0; k < 16; ++k) p.set(k, rays[std::min(i + std::size_t(k), rays.size() - 1)]);
                 for (const unsigned min_rays : {0u, 3u}) {
-                    const HitPacket<float, 16> hp = intersect(tree, ts, p, all_lanes<16>, {.min_rays = min_rays});
+                    const HitPacket<float, 16> hp = intersect(tree, ts, p, all_lanes<16>, {.min_rays = min_rays, .interval = min_rays == 0});
                     for (int k = 0; k < 16; ++k) {
                         const Hitf want = brute_force_intersect<trace::robust>(ts, p.ray(k));
                         const Hitf got = hp.hit(k);
