@@ -413,6 +413,12 @@ private:
                 const auto& n = top8_.nodes[cur];
                 alignas(32) float t[8];
                 unsigned mask = wb.template test<Oct>(n, tbox, t);
+                if (mask != 0 && (mask & (mask - 1)) == 0) {   // one child hit: go there
+                    const int a = std::countr_zero(mask);
+                    cur = n.child[a];
+                    cur_count = n.count[a];
+                    continue;
+                }
                 if (mask != 0) {
                     int order[8];
                     int m = 0;
@@ -535,12 +541,23 @@ private:
             // The float top level, for origins within the boxes' reach bound (the common case).
             const double og = std::max({std::abs(double(ray.org.x)), std::abs(double(ray.org.y)), std::abs(double(ray.org.z))});
             if (og <= origin_bound_ && top8_.depth < max_depth) {
+                auto run = [&](const detail::WideBoxTest<box::robust, float, 8>& wb, float t_scale, int octant) {
+                    detail::dispatch_octant(octant, [&](auto oct) {
+                        trace_top8<Policy, AnyHit, decltype(oct)::value>(ray, wb, t_scale, best);
+                        return 0;
+                    });
+                };
+#if defined(DYNBVH_SSE)
+                bool ok;
+                int octant;
+                const detail::WideBoxTest<box::robust, float, 8> fast(ray, ok, octant);   // the common ray's setup
+                if (ok) [[likely]] {
+                    run(fast, 1.0f, octant);
+                    return best;
+                }
+#endif
                 const box::robust::prepared<float> pb(ray);
-                const detail::WideBoxTest<box::robust, float, 8> wb(pb);
-                detail::dispatch_octant(pb.octant, [&](auto oct) {
-                    trace_top8<Policy, AnyHit, decltype(oct)::value>(ray, wb, pb.t_scale, best);
-                    return 0;
-                });
+                run(detail::WideBoxTest<box::robust, float, 8>(pb), pb.t_scale, pb.octant);
                 return best;
             }
         }
