@@ -27,9 +27,11 @@
 /// own input format, so no new tree code was needed. Default top leaves hold one instance (a leaf
 /// test is a whole object traversal, far dearer than a box test).
 ///
-/// Traversal: the top-level tree is walked near-first in double; at a leaf each instance's ray is
-/// `object_ray(inverse, ray)` (affine.hpp: origin and direction by the inverse transform, same t) and
-/// the object's own traversal (traverse.hpp) runs with the closest t found so far as tmax. A hit
+/// Traversal: the top-level tree is walked near-first in double (reciprocals of the widened direction
+/// computed once per ray); at a leaf each instance's ray is `object_ray(inverse, ray)` (affine.hpp: origin
+/// and direction by the inverse transform, same t) and the object's traversal runs with the closest t
+/// found so far as tmax, through the object's tree made 8-wide with SIMD triangle-block leaves for float
+/// (`object_traced_type`; wide_blocks.hpp: the same answers as the object's binary tree, bit for bit). A hit
 /// reports t (the same parameter in world and object space), u, v, the object's triangle (`prim`) and
 /// the instance (`instance`).
 ///
@@ -52,6 +54,7 @@
 #pragma once
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
 #include <cstddef>
 #include <cstdint>
@@ -59,6 +62,7 @@
 #include <span>
 #include <stdexcept>
 #include <string>
+#include <type_traits>
 #include <utility>
 #include <vector>
 
@@ -70,6 +74,9 @@
 #include "dynamic.hpp"
 #include "executor.hpp"
 #include "traverse.hpp"
+#include "traverse_wide.hpp"
+#include "wide.hpp"
+#include "wide_blocks.hpp"
 
 namespace dynbvh {
 
@@ -118,6 +125,10 @@ public:
     using triangle_type = Triangle<scalar_type>;                  ///< an object's triangle
     using object_policy = Dynamic<Builder, NodeT, Prim, Exec>;    ///< each object's refit-or-rebuild policy
     using object_bvh_type = Bvh<NodeT, Prim>;                     ///< an object's tree
+    /// The tree each object is traced through: its tree made 8-wide, with leaves in SIMD triangle blocks
+    /// for float (wide_blocks.hpp), else with the same leaves (wide.hpp); the same answers, bit for bit.
+    using object_traced_type = std::conditional_t<std::is_same_v<typename NodeT::scalar_type, float>,
+                                                  wide_blocks_bvh_of<Bvh<NodeT, Prim>, 8>, wide_bvh_of<Bvh<NodeT, Prim>, 8>>;
     using top_bvh_type = Bvh<NodeT, prim::indexed>;   ///< its prim_ids are instance indices
     using config_type = TwoLevelConfig<Builder>;                  ///< the scene's knobs
 
@@ -131,8 +142,9 @@ public:
     std::uint32_t add_object(std::span<const triangle_type> tris) {
         if (objects_.size() >= std::size_t(invalid_prim))
             throw std::length_error("dynbvh::TwoLevel::add_object: too many objects");
-        Object o{object_policy(cfg_.objects, ex_), tris};
+        Object o{object_policy(cfg_.objects, ex_), tris, {}};
         o.policy.update(tris);
+        retrace(o);
         objects_.push_back(std::move(o));
         dirty_ = true;
         return static_cast<std::uint32_t>(objects_.size() - 1);
@@ -146,6 +158,7 @@ public:
         Object& o = objects_[object];
         FrameReport r = o.policy.update(tris);
         o.tris = tris;
+        retrace(o);
         dirty_ = true;
         return r;
     }
@@ -194,21 +207,35 @@ public:
         refs.prim.resize(n);
         double alpha = 0;
         std::size_t live = 0;
+        std::vector<double> alphas(n);
         for (std::size_t i = 0; i < n; ++i) {
             const object_bvh_type& ob = objects_[instances_[i].object].policy.bvh();
             if (ob.empty()) continue;
             double a = 0;
             refs.box[live] = world_box(ob.bounds(), instances_[i].transform, inverses_[i], a, i);
+            alphas[live] = a;
             refs.prim[live++] = static_cast<std::uint32_t>(i);
             alpha = std::max(alpha, a);
         }
         refs.box.resize(live);
         refs.prim.resize(live);
+        // The reach widening folded into the boxes, for the float top level (see the file comment):
+        // a ray from an origin with |o| <= S comes within a|t|D <= a (B_i + S) / (1 - a) of box i where
+        // it reaches it (B_i the box's largest coordinate), so box i grown by that much lets the plain
+        // robust slab test stand in for the widened one. S = 8 times the largest coordinate of any box: the
+        // cameras of a scene are rarely farther out; rays from farther take the double top level.
+        double S = 0;
+        for (std::size_t j = 0; j < live; ++j) S = std::max(S, largest_coordinate(refs.box[j]));
+        S *= 8;
+        for (std::size_t j = 0; j < live; ++j)
+            refs.box[j] = grown(refs.box[j], alphas[j] * (largest_coordinate(refs.box[j]) + S) * (1.0 + 1.0 / 64), j);
+        origin_bound_ = S;
         refs.excluded = n - live;
         update_reference_bounds(refs, ex_);
         const BinaryTree tree = Builder::build_tree(refs, cfg_.top, ex_);
         // No triangles: the top level is prim::indexed over instance ids, and emission reads none.
         top_ = emit_bvh<NodeT, prim::indexed>(tree, refs, std::span<const triangle_type>(), cfg_.top.leaves, ex_);
+        if constexpr (std::is_same_v<T, float>) top8_ = make_wide<8>(top_, ex_);
         alpha_ = alpha;
         dirty_ = false;
     }
@@ -282,7 +309,13 @@ private:
     struct Object {
         object_policy policy;
         std::span<const triangle_type> tris;
+        object_traced_type traced;   ///< policy.bvh() in the traced layout, remade after every update
     };
+    /// Remakes o.traced from the object's tree (once for a rigid object; per update for a deformed one).
+    void retrace(Object& o) {
+        if constexpr (std::is_same_v<typename NodeT::scalar_type, float>) o.traced = make_wide_blocks<8>(o.policy.bvh(), o.tris, ex_);
+        else o.traced = make_wide<8>(o.policy.bvh(), ex_);
+    }
     struct Entry {
         typename NodeT::index_type node;
         double enter;
@@ -339,36 +372,156 @@ private:
         return out;
     }
 
-    /// The widened slab test over t in [t0, t1] (all t of one sign; `a` = alpha for t >= 0, -alpha for
-    /// t <= 0): whether the ray comes within a |t| D of box `b` for some t there; `enter` = the first such t.
-    static bool reach(const AABB<scalar_type>& b, const double* o, const double* d, double aD, double t0, double t1,
-                      double& enter) noexcept {
+    /// The largest |coordinate| of box `b`.
+    static double largest_coordinate(const AABB<scalar_type>& b) noexcept {
+        double m = 0;
+        for (std::size_t r = 0; r < 3; ++r) m = std::max({m, std::abs(double(b.min[r])), std::abs(double(b.max[r]))});
+        return m;
+    }
+    /// Box `b` grown by `e` on every side, rounded outward to T (std::invalid_argument for instance `i` on overflow).
+    static AABB<scalar_type> grown(const AABB<scalar_type>& b, double e, std::size_t i) {
+        using T = scalar_type;
+        constexpr T tinf = std::numeric_limits<T>::infinity();
+        AABB<T> out;
+        for (std::size_t r = 0; r < 3; ++r) {
+            const double l = double(b.min[r]) - e, h = double(b.max[r]) + e;
+            T lt = T(l), ht = T(h);
+            if (double(lt) > l) lt = std::nextafter(lt, -tinf);
+            if (double(ht) < h) ht = std::nextafter(ht, tinf);
+            if (!std::isfinite(lt) || !std::isfinite(ht))
+                throw std::invalid_argument("dynbvh::TwoLevel::commit: the world box of instance " + std::to_string(i) +
+                                            " overflows the scalar type");
+            out.min[r] = lt;
+            out.max[r] = ht;
+        }
+        return out;
+    }
+
+    /// The float top level (top8_, boxes grown by the reach widening, see commit()): 8-wide near-first
+    /// traversal with the robust slab test (traverse_wide.hpp's box test), one octant.
+    template <class Policy, bool AnyHit, int Oct>
+    void trace_top8(const Ray<float>& ray, const detail::WideBoxTest<box::robust, float, 8>& wb, float t_scale,
+                    InstanceHit<float>& best) const {
+        using Index = typename NodeT::index_type;
+        using Entry = detail::WideStackEntry<Index, float>;
+        Entry stack[7 * (max_depth + 1)];   // depth < max_depth checked by the caller
+        std::size_t sp = 0;
+        float tmax = ray.tmax, tbox = tmax * t_scale;
+        Index cur = 0, cur_count = 0;
+        for (;;) {
+            if (cur_count == 0) {
+                const auto& n = top8_.nodes[cur];
+                alignas(32) float t[8];
+                unsigned mask = wb.template test<Oct>(n, tbox, t);
+                if (mask != 0 && (mask & (mask - 1)) == 0) {   // one child hit: go there
+                    const int a = std::countr_zero(mask);
+                    cur = n.child[a];
+                    cur_count = n.count[a];
+                    continue;
+                }
+                if (mask != 0) {
+                    int order[8];
+                    int m = 0;
+                    for (; mask != 0; mask &= mask - 1) order[m++] = std::countr_zero(mask);
+                    for (int i = 1; i < m; ++i)
+                        for (int j = i; j > 0 && t[order[j]] < t[order[j - 1]]; --j) std::swap(order[j], order[j - 1]);
+                    for (int i = m - 1; i > 0; --i) stack[sp++] = Entry{n.child[order[i]], n.count[order[i]], t[order[i]]};
+                    cur = n.child[order[0]];
+                    cur_count = n.count[order[0]];
+                    continue;
+                }
+            } else {
+                for (std::size_t s = cur; s < std::size_t(cur) + cur_count; ++s) {
+                    const std::uint32_t k = static_cast<std::uint32_t>(top8_.prim_ids[s]);
+                    const Object& obj = objects_[instances_[k].object];
+                    const Ray<float> r = object_ray(inverses_[k], Ray<float>{ray.org, ray.dir, ray.tmin, tmax});
+                    if constexpr (AnyHit) {
+                        if (dynbvh::occluded<Policy>(obj.traced, obj.tris, r)) {
+                            best.prim = 0;
+                            best.instance = k;
+                            return;
+                        }
+                    } else {
+                        const Hit<float> h = dynbvh::intersect<Policy>(obj.traced, obj.tris, r);
+                        if (h) {
+                            static_cast<Hit<float>&>(best) = h;
+                            best.instance = k;
+                            tmax = h.t;
+                            tbox = tmax * t_scale;
+                        }
+                    }
+                }
+            }
+            Entry next;
+            if (!detail::pop_closer<box::robust>(stack, sp, tbox, next)) return;
+            cur = next.child;
+            cur_count = next.count;
+        }
+    }
+
+    /// One ray's constants for the widened slab test on t of one sign (a = alpha for t >= 0, -alpha for
+    /// t <= 0): per axis the reciprocals of d + a|d| and d - a|d| (0 where that is 0) and their signs,
+    /// computed once per ray so that a box costs multiplications, not divisions.
+    struct Reach {
+        double inv_lo[3] = {0, 0, 0}, inv_hi[3] = {0, 0, 0};
+        signed char s_lo[3] = {0, 0, 0}, s_hi[3] = {0, 0, 0};
+        Reach() = default;
+        Reach(const double* d, double aD) noexcept {
+            for (std::size_t ax = 0; ax < 3; ++ax) {
+                const double c1 = d[ax] + aD, c2 = d[ax] - aD;
+                s_lo[ax] = c1 > 0 ? 1 : c1 < 0 ? -1 : 0;
+                s_hi[ax] = c2 > 0 ? 1 : c2 < 0 ? -1 : 0;
+                inv_lo[ax] = s_lo[ax] != 0 ? 1.0 / c1 : 0.0;
+                inv_hi[ax] = s_hi[ax] != 0 ? 1.0 / c2 : 0.0;
+            }
+        }
+    };
+    /// The widened slab test over t in [t0, t1] (all t of one sign): whether the ray comes within a |t| D
+    /// of box `b` for some t there; `enter` = the first such t. The bounds are widened by 2^-48 of
+    /// themselves, more than the rounding of a product by a rounded reciprocal, so this never rejects what
+    /// the exact slab test accepts (the world boxes are padded far more, see the file comment).
+    static DYNBVH_ALWAYS_INLINE bool reach(const AABB<scalar_type>& b, const double* o, const Reach& R, double t0, double t1,
+                                           double& enter) noexcept {
+        constexpr double widen = 0x1p-48;
         for (std::size_t ax = 0; ax < 3; ++ax) {
             // lo - a|t|D <= o + t d   <=>   t (d + aD) >= lo - o
-            const double c1 = d[ax] + aD, r1 = double(b.min[ax]) - o[ax];
-            if (c1 > 0) t0 = std::max(t0, r1 / c1);
-            else if (c1 < 0) t1 = std::min(t1, r1 / c1);
-            else if (r1 > 0) return false;
+            const double r1 = double(b.min[ax]) - o[ax];
+            if (R.s_lo[ax] > 0) {
+                const double t = r1 * R.inv_lo[ax];
+                t0 = std::max(t0, t - std::abs(t) * widen);
+            } else if (R.s_lo[ax] < 0) {
+                const double t = r1 * R.inv_lo[ax];
+                t1 = std::min(t1, t + std::abs(t) * widen);
+            } else if (r1 > 0) {
+                return false;
+            }
             // o + t d <= hi + a|t|D   <=>   t (d - aD) <= hi - o
-            const double c2 = d[ax] - aD, r2 = double(b.max[ax]) - o[ax];
-            if (c2 > 0) t1 = std::min(t1, r2 / c2);
-            else if (c2 < 0) t0 = std::max(t0, r2 / c2);
-            else if (r2 < 0) return false;
+            const double r2 = double(b.max[ax]) - o[ax];
+            if (R.s_hi[ax] > 0) {
+                const double t = r2 * R.inv_hi[ax];
+                t1 = std::min(t1, t + std::abs(t) * widen);
+            } else if (R.s_hi[ax] < 0) {
+                const double t = r2 * R.inv_hi[ax];
+                t0 = std::max(t0, t - std::abs(t) * widen);
+            } else if (r2 < 0) {
+                return false;
+            }
         }
         enter = t0;
         return t0 <= t1;
     }
     /// Whether the ray may reach box `b` within [tmin, tmax] (conservative; see the file comment).
-    bool visit(const AABB<scalar_type>& b, const double* o, const double* d, double D, double tmin, double tmax,
-               double& enter) const noexcept {
+    /// `neg` / `pos`: the ray's Reach for t <= 0 and t >= 0.
+    static DYNBVH_ALWAYS_INLINE bool visit(const AABB<scalar_type>& b, const double* o, const Reach& neg, const Reach& pos,
+                                           double tmin, double tmax, double& enter) noexcept {
         bool hit = false;
         enter = std::numeric_limits<double>::infinity();
         double e;
-        if (tmin < 0 && reach(b, o, d, -alpha_ * D, tmin, std::min(tmax, 0.0), e)) {
+        if (tmin < 0 && reach(b, o, neg, tmin, std::min(tmax, 0.0), e)) {
             hit = true;
             enter = e;
         }
-        if (tmax >= 0 && reach(b, o, d, alpha_ * D, std::max(tmin, 0.0), tmax, e)) {
+        if (tmax >= 0 && reach(b, o, pos, std::max(tmin, 0.0), tmax, e)) {
             if (!hit) enter = e;
             hit = true;
         }
@@ -384,13 +537,39 @@ private:
                                    ": the scene changed since the last commit(); call commit() first");
         InstanceHit<T> best;
         if (top_.empty() || !traceable(ray)) return best;
+        if constexpr (std::is_same_v<T, float>) {
+            // The float top level, for origins within the boxes' reach bound (the common case).
+            const double og = std::max({std::abs(double(ray.org.x)), std::abs(double(ray.org.y)), std::abs(double(ray.org.z))});
+            if (og <= origin_bound_ && top8_.depth < max_depth) {
+                auto run = [&](const detail::WideBoxTest<box::robust, float, 8>& wb, float t_scale, int octant) {
+                    detail::dispatch_octant(octant, [&](auto oct) {
+                        trace_top8<Policy, AnyHit, decltype(oct)::value>(ray, wb, t_scale, best);
+                        return 0;
+                    });
+                };
+#if defined(DYNBVH_SSE)
+                bool ok;
+                int octant;
+                const detail::WideBoxTest<box::robust, float, 8> fast(ray, ok, octant);   // the common ray's setup
+                if (ok) [[likely]] {
+                    run(fast, 1.0f, octant);
+                    return best;
+                }
+#endif
+                const box::robust::prepared<float> pb(ray);
+                run(detail::WideBoxTest<box::robust, float, 8>(pb), pb.t_scale, pb.octant);
+                return best;
+            }
+        }
         const double o[3] = {double(ray.org.x), double(ray.org.y), double(ray.org.z)};
         const double d[3] = {double(ray.dir.x), double(ray.dir.y), double(ray.dir.z)};
         const double D = std::max({std::abs(d[0]), std::abs(d[1]), std::abs(d[2])});
         const double tmin = double(ray.tmin);
+        const Reach pos(d, alpha_ * D);
+        const Reach neg = tmin < 0 ? Reach(d, -alpha_ * D) : Reach{};   // only used for t < 0
         T tmax = ray.tmax;
         double enter;
-        if (!visit(top_.nodes[0].bounds(), o, d, D, tmin, double(tmax), enter)) return best;
+        if (!visit(top_.nodes[0].bounds(), o, neg, pos, tmin, double(tmax), enter)) return best;
 
         Entry fixed[max_depth + 1];
         std::vector<Entry> heap;
@@ -406,8 +585,8 @@ private:
             bool descend = false;
             if (!n.is_leaf()) {
                 double e0, e1;
-                const bool h0 = visit(top_.nodes[n.left()].bounds(), o, d, D, tmin, double(tmax), e0);
-                const bool h1 = visit(top_.nodes[n.right()].bounds(), o, d, D, tmin, double(tmax), e1);
+                const bool h0 = visit(top_.nodes[n.left()].bounds(), o, neg, pos, tmin, double(tmax), e0);
+                const bool h1 = visit(top_.nodes[n.right()].bounds(), o, neg, pos, tmin, double(tmax), e1);
                 if (h0 && h1) {
                     const bool second = e1 < e0;
                     stack[sp++] = second ? Entry{n.left(), e0} : Entry{n.right(), e1};
@@ -423,13 +602,13 @@ private:
                     const Object& obj = objects_[instances_[k].object];
                     const Ray<T> r = object_ray(inverses_[k], Ray<T>{ray.org, ray.dir, ray.tmin, tmax});
                     if constexpr (AnyHit) {
-                        if (dynbvh::occluded<Policy>(obj.policy.bvh(), obj.tris, r)) {
+                        if (dynbvh::occluded<Policy>(obj.traced, obj.tris, r)) {
                             best.prim = 0;
                             best.instance = k;
                             return best;
                         }
                     } else {
-                        const Hit<T> h = dynbvh::intersect<Policy>(obj.policy.bvh(), obj.tris, r);
+                        const Hit<T> h = dynbvh::intersect<Policy>(obj.traced, obj.tris, r);
                         if (h) {
                             static_cast<Hit<T>&>(best) = h;
                             best.instance = k;
@@ -459,7 +638,9 @@ private:
     std::vector<Instance<scalar_type>> instances_;
     std::vector<Affine<scalar_type>> inverses_;
     top_bvh_type top_;
+    WideBvh<WideNode<scalar_type, typename NodeT::index_type, 8>, prim::indexed> top8_;   // float: top_ 8-wide
     double alpha_ = 0;        // largest reach widening over the instances (see the file comment)
+    double origin_bound_ = 0; // rays with |org| up to this take the float top level (top8_)
     bool dirty_ = false;
 };
 
