@@ -379,38 +379,51 @@ struct PacketTraversal {
             tmax[k] = pk.tmax[k];
             best[k] = invalid_prim;
             hit[k] = Hit<float>{};
-            if constexpr (std::is_same_v<Tri, tri::watertight>) {
-                // tri::watertight::prepared's shear, the same operations
+        }
+        if constexpr (std::is_same_v<Tri, tri::watertight>) {
+            // tri::watertight::prepared's shear, the same operations: rcp = 1.0 / double(dir[kz]),
+            // sx = float(double(dir[kx]) * rcp) (every lane; only the group's are used)
+#if defined(DYNBVH_AVX)
+            for (int o = 0; o < N; o += 4) {
+                const __m256d rcp = _mm256_div_pd(_mm256_set1_pd(1.0), _mm256_cvtps_pd(_mm_load_ps(d[kz] + o)));
+                _mm_store_ps(sx + o, _mm256_cvtpd_ps(_mm256_mul_pd(_mm256_cvtps_pd(_mm_load_ps(d[kx] + o)), rcp)));
+                _mm_store_ps(sy + o, _mm256_cvtpd_ps(_mm256_mul_pd(_mm256_cvtps_pd(_mm_load_ps(d[ky] + o)), rcp)));
+            }
+#else
+            for (int k = 0; k < N; ++k) {
                 const double rcp_dz = 1.0 / double(d[kz][k]);
                 sx[k] = float(double(d[kx][k]) * rcp_dz);
                 sy[k] = float(double(d[ky][k]) * rcp_dz);
             }
+#endif
         }
         (void)f;
-        // the group's bounds: min / max over its lanes (the others masked to +-inf)
+        (void)d;
+        // the group's bounds: min / max over its lanes (the others masked to +-inf); named registers,
+        // not arrays (GCC keeps arrays of registers on the stack)
         const R pinf = V::set1(inf), ninf = V::set1(-inf);
-        R lo[7], hi[7];
-        for (int i = 0; i < 7; ++i) {
-            lo[i] = pinf;
-            hi[i] = ninf;
-        }
-        const float* src[7] = {ox, oy, oz, ix, iy, iz, tmin};
+        R lox = pinf, loy = pinf, loz = pinf, lix = pinf, liy = pinf, liz = pinf, lot = pinf;
+        R hox = ninf, hoy = ninf, hoz = ninf, hix = ninf, hiy = ninf, hiz = ninf;
         for (int h = 0; h < NS; ++h) {
             const int o = h * V::n;
             const R g = V::load(gm + o);
-            for (int i = 0; i < 7; ++i) {
-                const R x = V::load(src[i] + o);
-                lo[i] = V::min(lo[i], select(g, x, pinf));
-                hi[i] = V::max(hi[i], select(g, x, ninf));
-            }
+            const R X = V::load(ox + o), Y = V::load(oy + o), Z = V::load(oz + o);
+            const R IX = V::load(ix + o), IY = V::load(iy + o), IZ = V::load(iz + o);
+            lox = V::min(lox, select(g, X, pinf)); hox = V::max(hox, select(g, X, ninf));
+            loy = V::min(loy, select(g, Y, pinf)); hoy = V::max(hoy, select(g, Y, ninf));
+            loz = V::min(loz, select(g, Z, pinf)); hoz = V::max(hoz, select(g, Z, ninf));
+            lix = V::min(lix, select(g, IX, pinf)); hix = V::max(hix, select(g, IX, ninf));
+            liy = V::min(liy, select(g, IY, pinf)); hiy = V::max(hiy, select(g, IY, ninf));
+            liz = V::min(liz, select(g, IZ, pinf)); hiz = V::max(hiz, select(g, IZ, ninf));
+            lot = V::min(lot, select(g, V::load(tmin + o), pinf));
         }
-        oxlo = hmin(lo[0]); oxhi = hmax(hi[0]);
-        oylo = hmin(lo[1]); oyhi = hmax(hi[1]);
-        ozlo = hmin(lo[2]); ozhi = hmax(hi[2]);
-        ixlo = hmin(lo[3]); ixhi = hmax(hi[3]);
-        iylo = hmin(lo[4]); iyhi = hmax(hi[4]);
-        izlo = hmin(lo[5]); izhi = hmax(hi[5]);
-        tminlo = hmin(lo[6]);
+        oxlo = hmin(lox); oxhi = hmax(hox);
+        oylo = hmin(loy); oyhi = hmax(hoy);
+        ozlo = hmin(loz); ozhi = hmax(hoz);
+        ixlo = hmin(lix); ixhi = hmax(hix);
+        iylo = hmin(liy); iyhi = hmax(hiy);
+        izlo = hmin(liz); izhi = hmax(hiz);
+        tminlo = hmin(lot);
         // interval traversal needs finite reciprocals (no direction component exactly 0)
         coherent = std::abs(ixlo) < inf && std::abs(ixhi) < inf && std::abs(iylo) < inf && std::abs(iyhi) < inf &&
                    std::abs(izlo) < inf && std::abs(izhi) < inf;
