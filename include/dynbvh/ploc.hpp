@@ -35,8 +35,10 @@
 #include "detail/emit.hpp"
 #include "detail/emit_wide.hpp"
 #include "executor.hpp"
+#include "mesh.hpp"
 #include "detail/morton.hpp"
 #include "detail/references.hpp"
+#include "detail/triangle_source.hpp"
 #include "detail/scratch.hpp"
 
 namespace dynbvh::ploc {
@@ -260,15 +262,39 @@ BinaryTree build_tree(References<T>& refs, const Config& cfg, const Exec& ex) {
     return detail::Clustering<T>(refs, cfg.radius, ex).run(ex);
 }
 
+namespace detail {
+
+/// build and build_wide over any triangle source (a span or a MeshView): one code path.
+template <class NodeT, class Prim, class Source, class Exec>
+Bvh<NodeT, Prim> build(Source tris, const Config& cfg, const Exec& ex) {
+    auto refs = make_references(tris, ex);
+    const auto tree = dynbvh::ploc::build_tree(refs, cfg, ex);
+    return emit_bvh<NodeT, Prim>(tree, refs, tris, cfg.leaves, ex);
+}
+
+template <int W, class NodeT, class Prim, class Source, class Exec>
+wide_bvh_of<Bvh<NodeT, Prim>, W> build_wide(Source tris, const Config& cfg, const Exec& ex) {
+    auto refs = make_references(tris, ex);
+    const auto tree = dynbvh::ploc::build_tree(refs, cfg, ex);
+    return emit_wide_bvh<W, NodeT, Prim>(tree, refs, tris, cfg.leaves, ex);
+}
+
+} // namespace detail
+
 /// Builds a PLOC BVH over `tris` in one call:
 /// `auto bvh = dynbvh::ploc::build(tris, {.radius = 5}, dynbvh::exec::omp{});`
 /// Triangles with non-finite vertices are left out (counted in Bvh::excluded). `tris` is not modified.
 template <class NodeT = Node<>, class Prim = prim::indexed, class Exec = exec::default_executor>
 Bvh<NodeT, Prim> build(std::span<const Triangle<typename NodeT::scalar_type>> tris, const Config& cfg = {},
                        const Exec& ex = {}) {
-    auto refs = make_references(tris, ex);
-    auto tree = build_tree(refs, cfg, ex);
-    return emit_bvh<NodeT, Prim>(tree, refs, tris, cfg.leaves, ex);
+    return detail::build<NodeT, Prim>(tris, cfg, ex);
+}
+
+/// Builds a PLOC BVH over an indexed mesh read in place (mesh.hpp): the tree `build` gives over
+/// `make_triangles(vertices, indices)`, bit for bit, without that copy. NodeT defaults to Node<T>.
+template <class NodeT = void, class Prim = prim::indexed, class Exec = exec::default_executor, class T, class Index>
+Bvh<dynbvh::detail::node_for_t<NodeT, T>, Prim> build(const MeshView<T, Index>& mesh, const Config& cfg = {}, const Exec& ex = {}) {
+    return detail::build<dynbvh::detail::node_for_t<NodeT, T>, Prim>(mesh, cfg, ex);
 }
 
 /// Builds a PLOC BVH straight into the W-wide layout (W = 4 or 8; detail/emit_wide.hpp): the tree
@@ -276,9 +302,14 @@ Bvh<NodeT, Prim> build(std::span<const Triangle<typename NodeT::scalar_type>> tr
 template <int W = 8, class NodeT = Node<>, class Prim = prim::indexed, class Exec = exec::default_executor>
 wide_bvh_of<Bvh<NodeT, Prim>, W> build_wide(std::span<const Triangle<typename NodeT::scalar_type>> tris,
                                             const Config& cfg = {}, const Exec& ex = {}) {
-    auto refs = make_references(tris, ex);
-    const auto tree = build_tree(refs, cfg, ex);
-    return emit_wide_bvh<W, NodeT, Prim>(tree, refs, tris, cfg.leaves, ex);
+    return detail::build_wide<W, NodeT, Prim>(tris, cfg, ex);
+}
+
+/// build_wide over an indexed mesh read in place (mesh.hpp); same tree as over make_triangles' array.
+template <int W = 8, class NodeT = void, class Prim = prim::indexed, class Exec = exec::default_executor, class T, class Index>
+wide_bvh_of<Bvh<dynbvh::detail::node_for_t<NodeT, T>, Prim>, W> build_wide(const MeshView<T, Index>& mesh, const Config& cfg = {},
+                                                                         const Exec& ex = {}) {
+    return detail::build_wide<W, dynbvh::detail::node_for_t<NodeT, T>, Prim>(mesh, cfg, ex);
 }
 
 /// The same for a std::vector of triangles of any scalar, the node type following the triangles:

@@ -48,6 +48,7 @@
 #include "detail/check_triangles.hpp"
 #include "detail/triangle_block.hpp"
 #include "executor.hpp"
+#include "mesh.hpp"
 #include "wide.hpp"
 
 namespace dynbvh {
@@ -90,20 +91,18 @@ inline constexpr LeafConfig block_leaves{.max_leaf_size = 8, .cost = {.ct = 3, .
 template <class B, int W = 8, int L = W>
 using wide_blocks_bvh_of = WideBvh<WideNode<typename B::scalar_type, typename B::index_type, W>, prim::blocks<L>>;
 
-/// Converts a binary float BVH into a W-wide one with leaves in blocks of L triangles (see the file
-/// comment). `tris` is the array the binary tree was built over (unused for prim::copied trees; any
-/// other size than `bvh.primitive_count` throws std::invalid_argument). O(references), parallel over `ex`.
-template <int W = 8, int L = W, class NodeT, class Prim, class Exec = exec::default_executor>
-wide_blocks_bvh_of<Bvh<NodeT, Prim>, W, L> make_wide_blocks(const Bvh<NodeT, Prim>& bvh,
-                                                            std::span<const Triangle<typename NodeT::scalar_type>> tris,
-                                                            const Exec& ex = {}) {
+namespace detail {
+
+/// make_wide_blocks over any triangle source (a span or a MeshView): one code path.
+template <int W, int L, class NodeT, class Prim, class Source, class Exec>
+wide_blocks_bvh_of<Bvh<NodeT, Prim>, W, L> make_wide_blocks(const Bvh<NodeT, Prim>& bvh, Source tris, const Exec& ex) {
     static_assert(std::is_same_v<typename NodeT::scalar_type, float>, "dynbvh::make_wide_blocks: triangle blocks are float");
     using Index = typename NodeT::index_type;
-    detail::check_triangles(bvh, tris.size(), "make_wide_blocks", !Bvh<NodeT, Prim>::precomputed);
+    check_triangles(bvh, tris.size(), "make_wide_blocks", !Bvh<NodeT, Prim>::precomputed);
     wide_blocks_bvh_of<Bvh<NodeT, Prim>, W, L> w;
     {
         wide_bvh_of<Bvh<NodeT, Prim>, W> topology;   // the nodes of make_wide<W>
-        detail::collapse_to_wide<W>(bvh, topology, ex);
+        collapse_to_wide<W>(bvh, topology, ex);
         w.nodes = std::move(topology.nodes);
         w.depth = topology.depth;
     }
@@ -121,7 +120,7 @@ wide_blocks_bvh_of<Bvh<NodeT, Prim>, W, L> make_wide_blocks(const Bvh<NodeT, Pri
     });
     const std::size_t leaf_count = ex.exclusive_scan(std::span<const std::size_t>(first_leaf), std::span<std::size_t>(first_leaf));
     // Step 2: the leaves' slot ranges.
-    std::vector<detail::LeafRange> leaves(leaf_count);
+    std::vector<LeafRange> leaves(leaf_count);
     ex.for_each(0, nn, [&](std::size_t i) {
         std::size_t j = first_leaf[i];
         for (int k = 0; k < W; ++k)
@@ -130,19 +129,40 @@ wide_blocks_bvh_of<Bvh<NodeT, Prim>, W, L> make_wide_blocks(const Bvh<NodeT, Pri
     // Step 3: pack, then point each leaf slot at its first block.
     std::vector<std::size_t> first_block;
     if constexpr (Bvh<NodeT, Prim>::precomputed)
-        detail::pack_triangle_blocks<L>(std::span<const detail::LeafRange>(leaves), std::span<const Index>(bvh.prim_ids),
-                                        [&](std::size_t s) -> const Triangle<float>& { return bvh.leaf_triangles[s]; }, w.blocks,
-                                        first_block, ex);
+        pack_triangle_blocks<L>(std::span<const LeafRange>(leaves), std::span<const Index>(bvh.prim_ids),
+                                [&](std::size_t s) -> const Triangle<float>& { return bvh.leaf_triangles[s]; }, w.blocks,
+                                first_block, ex);
     else
-        detail::pack_triangle_blocks<L>(std::span<const detail::LeafRange>(leaves), std::span<const Index>(bvh.prim_ids),
-                                        [&](std::size_t s) -> const Triangle<float>& { return tris[bvh.prim_ids[s]]; }, w.blocks,
-                                        first_block, ex);
+        pack_triangle_blocks<L>(std::span<const LeafRange>(leaves), std::span<const Index>(bvh.prim_ids),
+                                [&](std::size_t s) -> decltype(auto) { return tris[bvh.prim_ids[s]]; }, w.blocks,
+                                first_block, ex);
     ex.for_each(0, nn, [&](std::size_t i) {
         std::size_t j = first_leaf[i];
         for (int k = 0; k < W; ++k)
             if (w.nodes[i].count[k] != 0) w.nodes[i].child[k] = Index(first_block[j++]);
     });
     return w;
+}
+
+} // namespace detail
+
+/// Converts a binary float BVH into a W-wide one with leaves in blocks of L triangles (see the file
+/// comment). `tris` is the array the binary tree was built over (unused for prim::copied trees; any
+/// other size than `bvh.primitive_count` throws std::invalid_argument). O(references), parallel over `ex`.
+template <int W = 8, int L = W, class NodeT, class Prim, class Exec = exec::default_executor>
+wide_blocks_bvh_of<Bvh<NodeT, Prim>, W, L> make_wide_blocks(const Bvh<NodeT, Prim>& bvh,
+                                                            std::span<const Triangle<typename NodeT::scalar_type>> tris,
+                                                            const Exec& ex = {}) {
+    return detail::make_wide_blocks<W, L>(bvh, tris, ex);
+}
+
+/// The same from an indexed mesh read in place (mesh.hpp): the same tree as from make_triangles' array,
+/// bit for bit.
+template <int W = 8, int L = W, class NodeT, class Prim, class Index, class Exec = exec::default_executor>
+wide_blocks_bvh_of<Bvh<NodeT, Prim>, W, L> make_wide_blocks(const Bvh<NodeT, Prim>& bvh,
+                                                            const MeshView<typename NodeT::scalar_type, Index>& mesh,
+                                                            const Exec& ex = {}) {
+    return detail::make_wide_blocks<W, L>(bvh, mesh, ex);
 }
 
 /// Block trees hold copies of the vertices and cannot be refitted: refit the binary tree and call

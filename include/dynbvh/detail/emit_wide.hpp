@@ -177,9 +177,8 @@ void compact_wide_references(WideBvh<WNodeT, Prim>& bvh) {
 
 /// emit_wide_bvh's top-down pass from the facts of every inner node (computed by compute_node_info or
 /// by the builder itself, as LBVH does). See the file comment. O(n), parallel.
-template <int W, class NodeT, class Prim, class T, class Exec>
-wide_bvh_of<Bvh<NodeT, Prim>, W> emit_wide_from_info(const BinaryTree& tree, const References<T>& refs,
-                                                     std::span<const Triangle<T>> tris,
+template <int W, class NodeT, class Prim, class T, triangle_source Source, class Exec>
+wide_bvh_of<Bvh<NodeT, Prim>, W> emit_wide_from_info(const BinaryTree& tree, const References<T>& refs, Source tris,
                                                      std::span<const RawNodeInfo<T>> info, const Exec& ex) {
     using Index = typename NodeT::index_type;
     using Result = wide_bvh_of<Bvh<NodeT, Prim>, W>;
@@ -275,9 +274,9 @@ wide_bvh_of<Bvh<NodeT, Prim>, W> emit_wide_from_info(const BinaryTree& tree, con
 /// `make_wide<W>(emit_bvh<NodeT, Prim>(tree, refs, tris, cfg, ex), ex)` gives, bit for bit, without
 /// the binary nodes (see detail/emit_wide.hpp). For prim::copied the leaf triangles are copied from
 /// `tris`. O(n) work, parallel.
-template <int W, class NodeT, class Prim, class T, class Exec>
-wide_bvh_of<Bvh<NodeT, Prim>, W> emit_wide_bvh(const BinaryTree& tree, const References<T>& refs,
-                                               std::span<const Triangle<T>> tris, const LeafConfig& cfg, const Exec& ex) {
+template <int W, class NodeT, class Prim, class T, detail::triangle_source Source, class Exec>
+wide_bvh_of<Bvh<NodeT, Prim>, W> emit_wide_bvh(const BinaryTree& tree, const References<T>& refs, Source tris,
+                                               const LeafConfig& cfg, const Exec& ex) {
     scratch_vector<detail::RawNodeInfo<T>> info(refs.size() == 0 ? 0 : tree.inner_count());
     if (refs.size() != 0) detail::compute_node_info(tree, refs, cfg, std::span<detail::RawNodeInfo<T>>(info), ex);
     return detail::emit_wide_from_info<W, NodeT, Prim>(tree, refs, tris, std::span<const detail::RawNodeInfo<T>>(info), ex);
