@@ -155,43 +155,23 @@ std::string difference(const Tree& a, const Tree& b) {
     return {};
 }
 
-/// The builders under test, each as a callable `(source, ex, prim tag, output tag)`.
-template <int Output>   // 0: build, 4 / 8: build_wide<W>
-struct Builds {
-    template <class Prim, class Src, class Exec>
-    static auto lbvh(Src s, const Exec& ex, int bits) {
-        const dynbvh::lbvh::Config cfg{.morton_bits = bits};
-        if constexpr (Output == 0) return dynbvh::lbvh::build<Node<>, Prim>(s, cfg, ex);
-        else return dynbvh::lbvh::build_wide<Output, Node<>, Prim>(s, cfg, ex);
-    }
-    template <class Prim, class Src, class Exec>
-    static auto ploc(Src s, const Exec& ex) {
-        if constexpr (Output == 0) return dynbvh::ploc::build<Node<>, Prim>(s, {}, ex);
-        else return dynbvh::ploc::build_wide<Output, Node<>, Prim>(s, {}, ex);
-    }
-    template <class Prim, class Src, class Exec>
-    static auto kbvh(Src s, const Exec& ex) {
-        const dynbvh::kbvh::Config<> cfg{.split = {.beta = 0.3f}};   // presplit: many fragments
-        if constexpr (Output == 0) return dynbvh::kbvh::build<Node<>, Prim>(s, cfg, ex);
-        else return dynbvh::kbvh::build_wide<Output, Node<>, Prim>(s, cfg, ex);
-    }
-    template <class Prim, class Src, class Exec>
-    static auto sah(Src s, const Exec& ex) {
-        if constexpr (Output == 0) return dynbvh::binned_sah::build<Node<>, Prim>(s, {}, ex);
-        else return dynbvh::binned_sah::build_wide<Output, Node<>, Prim>(s, {}, ex);
-    }
-};
-
-/// Calls check(name, build) with `build(source)` for every builder.
+/// Calls check(name, build) with `build(source)` giving the tree of every builder: build when Output
+/// is 0, else build_wide<Output>.
+// (a macro: the builders are namespaces, not types)
+#define MESH_VIEW_BUILDER(name, ns, cfg)                                                                  \
+    check(name, [&](auto s) {                                                                            \
+        if constexpr (Output == 0) return dynbvh::ns::build<Node<>, Prim>(s, cfg, ex);                  \
+        else return dynbvh::ns::build_wide<Output, Node<>, Prim>(s, cfg, ex);                           \
+    })
 template <int Output, class Prim, class Exec, class Check>
 void for_each_builder(const Exec& ex, Check&& check) {
-    using B = Builds<Output>;
-    check("lbvh30", [&](auto s) { return B::template lbvh<Prim>(s, ex, 30); });
-    check("lbvh63", [&](auto s) { return B::template lbvh<Prim>(s, ex, 63); });
-    check("ploc", [&](auto s) { return B::template ploc<Prim>(s, ex); });
-    check("kbvh", [&](auto s) { return B::template kbvh<Prim>(s, ex); });
-    check("binned_sah", [&](auto s) { return B::template sah<Prim>(s, ex); });
+    MESH_VIEW_BUILDER("lbvh30", lbvh, dynbvh::lbvh::Config{.morton_bits = 30});
+    MESH_VIEW_BUILDER("lbvh63", lbvh, dynbvh::lbvh::Config{.morton_bits = 63});
+    MESH_VIEW_BUILDER("ploc", ploc, dynbvh::ploc::Config{});
+    MESH_VIEW_BUILDER("kbvh", kbvh, dynbvh::kbvh::Config<>{.split = {.beta = 0.3f}});   // presplit: many fragments
+    MESH_VIEW_BUILDER("binned_sah", binned_sah, dynbvh::binned_sah::Config{});
 }
+#undef MESH_VIEW_BUILDER
 
 template <int Output, class Prim, class Exec>
 void compare_builds(const Mesh& m, const Exec& ex) {

@@ -116,6 +116,8 @@ struct Sphere {
                 indices.insert(indices.end(), {id(i, j), id(i + 1, j + 1), id(i, j + 1)});
             }
     }
+    MeshView<float> view() const { return {std::span<const Vec3f>(vertices), std::span<const std::uint32_t>(indices)}; }
+    std::vector<Trianglef> flat() const { return make_triangles(std::span<const Vec3f>(vertices), std::span<const std::uint32_t>(indices)); }
     void move(int frame) {   // in place, as an animation would
         for (Vec3f& v : vertices) v.x += 0.01f * std::sin(float(frame) + 5.0f * v.y);
     }
@@ -130,14 +132,25 @@ std::size_t tree_bytes(const B& b) {
            b.leaf_triangles.capacity() * sizeof(Trianglef);
 }
 
+/// dyn.update(src), counted; requires the decision `want`.
+template <class D, class Src>
+Counted counted_update(D& dyn, const Src& src, Decision want) {
+    FrameReport r;
+    const Counted c = measure([&] { r = dyn.update(src); });
+    REQUIRE(r.decision == want);
+    return c;
+}
+
+constexpr double never = std::numeric_limits<double>::infinity();
+
 } // namespace
 
 TEST_CASE("mesh view alloc: refit frames of Dynamic::update(view) allocate nothing" * doctest::skip(skip_counting)) {
     Sphere s(128, 256);   // 65536 triangles
-    const MeshView<float> view(std::span<const Vec3f>(s.vertices), std::span<const std::uint32_t>(s.indices));
+    const MeshView<float> view = s.view();
     const auto n = view.size();
-    Dynamic<builder::ploc, Node<>, prim::indexed, exec::serial> indexed({.rebuild_threshold = std::numeric_limits<double>::infinity()});
-    Dynamic<builder::ploc, Node<>, prim::copied, exec::serial> copied({.rebuild_threshold = std::numeric_limits<double>::infinity()});
+    Dynamic<builder::ploc, Node<>, prim::indexed, exec::serial> indexed({.rebuild_threshold = never});
+    Dynamic<builder::ploc, Node<>, prim::copied, exec::serial> copied({.rebuild_threshold = never});
     for (int f = 0; f < 2; ++f) {   // warm-up: the first frame builds
         s.move(f);
         indexed.update(view);
@@ -145,11 +158,8 @@ TEST_CASE("mesh view alloc: refit frames of Dynamic::update(view) allocate nothi
     }
     for (int f = 2; f < 6; ++f) {
         s.move(f);
-        FrameReport ri, rc;
-        const Counted ci = measure([&] { ri = indexed.update(view); });
-        const Counted cc = measure([&] { rc = copied.update(view); });
-        REQUIRE(ri.decision == Decision::refit);
-        REQUIRE(rc.decision == Decision::refit);
+        const Counted ci = counted_update(indexed, view, Decision::refit);
+        const Counted cc = counted_update(copied, view, Decision::refit);
         MESSAGE("refit frame, ", n, " triangles: indexed ", ci.bytes, " bytes in ", ci.calls, " allocations; copied ", cc.bytes,
                 " bytes in ", cc.calls);
         CHECK(ci.bytes == 0);
@@ -159,13 +169,12 @@ TEST_CASE("mesh view alloc: refit frames of Dynamic::update(view) allocate nothi
     }
     // The span path, for comparison (also none): the flattened copy the view saves is the user's
     // make_triangles, n * 36 bytes per frame, measured here.
-    std::vector<Trianglef> flat;
-    Dynamic<builder::ploc, Node<>, prim::indexed, exec::serial> over_span({.rebuild_threshold = std::numeric_limits<double>::infinity()});
-    flat = make_triangles(std::span<const Vec3f>(s.vertices), std::span<const std::uint32_t>(s.indices));
+    std::vector<Trianglef> flat = s.flat();
+    Dynamic<builder::ploc, Node<>, prim::indexed, exec::serial> over_span({.rebuild_threshold = never});
     over_span.update(flat);
     over_span.update(flat);
-    const Counted cs = measure([&] { over_span.update(flat); });
-    const Counted flatten = measure([&] { flat = make_triangles(std::span<const Vec3f>(s.vertices), std::span<const std::uint32_t>(s.indices)); });
+    const Counted cs = counted_update(over_span, flat, Decision::refit);
+    const Counted flatten = measure([&] { flat = s.flat(); });
     MESSAGE("span path refit frame: ", cs.bytes, " bytes; make_triangles per frame: ", flatten.bytes, " bytes");
     CHECK(cs.bytes == 0);
     CHECK(flatten.bytes == n * sizeof(Trianglef));
@@ -175,10 +184,10 @@ TEST_CASE("mesh view alloc: rebuild frames allocate nothing per triangle beyond 
     // Large enough that every per-triangle array (the tree's and the builder's) is above the scratch cache's
     // 1 MiB threshold: those come back from the cache after warm-up (detail/scratch.hpp).
     Sphere s(256, 520);   // 266240 triangles (not 2^18: (n - 1) * 4 bytes would fall just below the cache threshold)
-    const MeshView<float> view(std::span<const Vec3f>(s.vertices), std::span<const std::uint32_t>(s.indices));
+    const MeshView<float> view = s.view();
     const std::size_t n = view.size();
     Dynamic<builder::ploc, Node<>, prim::indexed, exec::serial> dyn({.rebuild_threshold = 0});   // rebuilds every frame
-    std::vector<Trianglef> flat = make_triangles(std::span<const Vec3f>(s.vertices), std::span<const std::uint32_t>(s.indices));
+    std::vector<Trianglef> flat = s.flat();
     Dynamic<builder::ploc, Node<>, prim::indexed, exec::serial> over_span({.rebuild_threshold = 0});
     for (int f = 0; f < 3; ++f) {   // warm-up: the scratch cache fills
         dyn.update(view);
@@ -186,12 +195,9 @@ TEST_CASE("mesh view alloc: rebuild frames allocate nothing per triangle beyond 
     }
     for (int f = 3; f < 5; ++f) {
         s.move(f);
-        flat = make_triangles(std::span<const Vec3f>(s.vertices), std::span<const std::uint32_t>(s.indices));
-        FrameReport r, rs;
-        const Counted c = measure([&] { r = dyn.update(view); });
-        const Counted cs = measure([&] { rs = over_span.update(flat); });
-        REQUIRE(r.decision == Decision::rebuild);
-        REQUIRE(rs.decision == Decision::rebuild);
+        flat = s.flat();
+        const Counted c = counted_update(dyn, view, Decision::rebuild);
+        const Counted cs = counted_update(over_span, flat, Decision::rebuild);
         MESSAGE("rebuild frame, ", n, " triangles: view ", c.bytes, " bytes in ", c.calls, " allocations (largest ", c.largest,
                 "), span ", cs.bytes, " bytes in ", cs.calls, " (largest ", cs.largest, "); tree arrays ", tree_bytes(dyn.bvh()),
                 " bytes; one triangle copy ", n * sizeof(Trianglef), " bytes");

@@ -405,20 +405,11 @@ BinaryTree build_tree(const References<T>& refs, const Config& cfg, const Exec& 
 
 namespace detail {
 
-/// build and build_wide over any triangle source (a span or a MeshView): one code path.
-template <class NodeT, class Prim, class Source, class Exec>
-Bvh<NodeT, Prim> build(Source tris, const Config& cfg, const Exec& ex) {
-    auto refs = make_references(tris, ex);
-    const auto tree = dynbvh::binned_sah::build_tree(refs, cfg, ex);
-    return emit_bvh<NodeT, Prim>(tree, refs, tris, cfg.leaves, ex);
-}
-
-template <int W, class NodeT, class Prim, class Source, class Exec>
-wide_bvh_of<Bvh<NodeT, Prim>, W> build_wide(Source tris, const Config& cfg, const Exec& ex) {
-    auto refs = make_references(tris, ex);
-    const auto tree = dynbvh::binned_sah::build_tree(refs, cfg, ex);
-    return emit_wide_bvh<W, NodeT, Prim>(tree, refs, tris, cfg.leaves, ex);
-}
+/// build_tree as a function object, for dynbvh::detail::build_over (detail/emit_wide.hpp).
+struct Topology {
+    template <class T, class Exec>
+    BinaryTree operator()(References<T>& refs, const Config& cfg, const Exec& ex) const { return dynbvh::binned_sah::build_tree(refs, cfg, ex); }
+};
 
 } // namespace detail
 
@@ -428,14 +419,14 @@ wide_bvh_of<Bvh<NodeT, Prim>, W> build_wide(Source tris, const Config& cfg, cons
 template <class NodeT = Node<>, class Prim = prim::indexed, class Exec = exec::default_executor>
 Bvh<NodeT, Prim> build(std::span<const Triangle<typename NodeT::scalar_type>> tris, const Config& cfg = {},
                        const Exec& ex = {}) {
-    return detail::build<NodeT, Prim>(tris, cfg, ex);
+    return dynbvh::detail::build_over<0, NodeT, Prim>(tris, cfg, detail::Topology{}, ex);
 }
 
 /// Builds an binned SAH BVH over an indexed mesh read in place (mesh.hpp): the tree `build` gives over
 /// `make_triangles(vertices, indices)`, bit for bit, without that copy. NodeT defaults to Node<T>.
 template <class NodeT = void, class Prim = prim::indexed, class Exec = exec::default_executor, class T, class Index>
 Bvh<dynbvh::detail::node_for_t<NodeT, T>, Prim> build(const MeshView<T, Index>& mesh, const Config& cfg = {}, const Exec& ex = {}) {
-    return detail::build<dynbvh::detail::node_for_t<NodeT, T>, Prim>(mesh, cfg, ex);
+    return dynbvh::detail::build_over<0, dynbvh::detail::node_for_t<NodeT, T>, Prim>(mesh, cfg, detail::Topology{}, ex);
 }
 
 /// Builds a binned SAH BVH straight into the W-wide layout (W = 4 or 8; detail/emit_wide.hpp): the tree
@@ -443,14 +434,14 @@ Bvh<dynbvh::detail::node_for_t<NodeT, T>, Prim> build(const MeshView<T, Index>& 
 template <int W = 8, class NodeT = Node<>, class Prim = prim::indexed, class Exec = exec::default_executor>
 wide_bvh_of<Bvh<NodeT, Prim>, W> build_wide(std::span<const Triangle<typename NodeT::scalar_type>> tris,
                                             const Config& cfg = {}, const Exec& ex = {}) {
-    return detail::build_wide<W, NodeT, Prim>(tris, cfg, ex);
+    return dynbvh::detail::build_over<W, NodeT, Prim>(tris, cfg, detail::Topology{}, ex);
 }
 
 /// build_wide over an indexed mesh read in place (mesh.hpp); same tree as over make_triangles' array.
 template <int W = 8, class NodeT = void, class Prim = prim::indexed, class Exec = exec::default_executor, class T, class Index>
 wide_bvh_of<Bvh<dynbvh::detail::node_for_t<NodeT, T>, Prim>, W> build_wide(const MeshView<T, Index>& mesh, const Config& cfg = {},
                                                                          const Exec& ex = {}) {
-    return detail::build_wide<W, dynbvh::detail::node_for_t<NodeT, T>, Prim>(mesh, cfg, ex);
+    return dynbvh::detail::build_over<W, dynbvh::detail::node_for_t<NodeT, T>, Prim>(mesh, cfg, detail::Topology{}, ex);
 }
 
 /// The same for a std::vector of triangles of any scalar, the node type following the triangles:

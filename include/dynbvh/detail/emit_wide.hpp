@@ -282,4 +282,19 @@ wide_bvh_of<Bvh<NodeT, Prim>, W> emit_wide_bvh(const BinaryTree& tree, const Ref
     return detail::emit_wide_from_info<W, NodeT, Prim>(tree, refs, tris, std::span<const detail::RawNodeInfo<T>>(info), ex);
 }
 
+namespace detail {
+
+/// The whole build of a builder whose topology step sees references alone (PLOC, binned SAH): the
+/// references of `tris` (any triangle source: a span or a MeshView), `topology(refs, cfg, ex)`, then
+/// emission with cfg.leaves, binary when W == 0, else W-wide. One code path for every input.
+template <int W, class NodeT, class Prim, class Source, class Config, class Topology, class Exec>
+auto build_over(Source tris, const Config& cfg, Topology topology, const Exec& ex) {
+    auto refs = make_references(tris, ex);
+    const BinaryTree tree = topology(refs, cfg, ex);
+    if constexpr (W == 0) return emit_bvh<NodeT, Prim>(tree, refs, tris, cfg.leaves, ex);
+    else return emit_wide_bvh<W, NodeT, Prim>(tree, refs, tris, cfg.leaves, ex);
+}
+
+} // namespace detail
+
 } // namespace dynbvh
