@@ -36,6 +36,7 @@
 namespace {
 std::atomic<bool> counting{false};
 std::atomic<std::size_t> counted_bytes{0}, counted_calls{0}, largest{0};
+#if DYNBVH_ALLOC_COUNTING
 void count(std::size_t n) noexcept {
     if (!counting.load(std::memory_order_relaxed)) return;
     counted_bytes.fetch_add(n, std::memory_order_relaxed);
@@ -43,6 +44,7 @@ void count(std::size_t n) noexcept {
     std::size_t l = largest.load(std::memory_order_relaxed);
     while (n > l && !largest.compare_exchange_weak(l, n, std::memory_order_relaxed)) {}
 }
+#endif
 } // namespace
 
 #if DYNBVH_ALLOC_COUNTING
