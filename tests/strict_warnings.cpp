@@ -143,7 +143,8 @@ double meshes(const MeshView<typename N::scalar_type, Index>& mesh, const Exec& 
         const auto blocks = make_wide_blocks<8>(b, mesh, ex);
         sum += double(intersect<trace::fast>(blocks, mesh, ray).t);
     }
-    sum += double(ploc::build(mesh).nodes.size() + mesh.vertex(0).x + mesh[0].p0.x + mesh.stride() + mesh.indices().size());
+    sum += double(ploc::build(mesh).nodes.size() + mesh.stride() + mesh.indices().size() + mesh.vertex_count());
+    sum += double(mesh.vertex(0).x) + double(mesh[0].p0.x) + double(mesh.empty());
     return sum;
 }
 
