@@ -1,6 +1,9 @@
 // Build time of every dynbvh builder next to Embree 3 (LOW, MEDIUM) on the same triangles with the
-// same thread count, in one run, so every figure reads as a ratio. Scenes: a ~92k-triangle frame of
-// the built-in cloth-ball and a ~1.6M-triangle frame of large-breaking. Each builder three ways: the
+// same thread count, in one run, so every figure reads as a ratio. Scenes (benchmark argument 0, 1, 2):
+// a ~92k-triangle frame of the built-in cloth-ball, a ~1.6M-triangle frame of large-breaking, and the
+// 99k long thin triangles of scenes/lattice.hpp. The traced layout (BM_*_blocks: 8-wide nodes with
+// leaves in SIMD blocks of 8) from each builder, and from morton_wide (the wide tree straight from the
+// sorted Morton codes). Each builder three ways: the
 // binary Bvh (BM_<builder>), binary + make_wide<8> (BM_<builder>_then_wide8) and direct wide emission
 // build_wide<8> (BM_<builder>_wide8; the same tree, the 8-wide layout the study traces); refit of the
 // binary and of the 8-wide LBVH tree (BM_refit_binary, BM_refit_wide8) beside Embree's REFIT.
@@ -17,11 +20,14 @@
 #include <dynbvh/binned_sah.hpp>
 #include <dynbvh/kbvh.hpp>
 #include <dynbvh/lbvh.hpp>
+#include <dynbvh/morton_wide.hpp>
 #include <dynbvh/ploc.hpp>
 #include <dynbvh/refit.hpp>
 #include <dynbvh/sah.hpp>
 #include <dynbvh/wide.hpp>
+#include <dynbvh/wide_blocks.hpp>
 #include <scenes/builtin.hpp>
+#include <scenes/lattice.hpp>
 
 #include "cli.hpp"
 #include "embree_bvh.hpp"
@@ -36,13 +42,17 @@ const std::vector<Trianglef>& scene_triangles(const std::string& name) {
     static std::map<std::string, std::vector<Trianglef>> cache;
     auto it = cache.find(name);
     if (it != cache.end()) return it->second;
-    auto scene = scenes::make_builtin(name);
     io::Frame f;
-    scene->frame(scene->frame_count() / 2, f);   // a mid-animation frame: the cloth draped, the pieces flying
+    if (name == "lattice") {
+        f = scenes::lattice();   // long thin crossing beams (scenes/lattice.hpp)
+    } else {
+        auto scene = scenes::make_builtin(name);
+        scene->frame(scene->frame_count() / 2, f);   // a mid-animation frame: the cloth draped, the pieces flying
+    }
     return cache.emplace(name, std::move(f.triangles)).first->second;
 }
 
-const char* scene_of(std::int64_t arg) { return arg == 0 ? "cloth-ball" : "large-breaking"; }
+const char* scene_of(std::int64_t arg) { return arg == 0 ? "cloth-ball" : arg == 1 ? "large-breaking" : "lattice"; }
 
 template <class Build>
 void run_dynbvh(benchmark::State& state, Build&& build) {
@@ -79,6 +89,27 @@ void BM_kbvh_then_wide8(benchmark::State& s) { run_dynbvh(s, [](const auto& t, c
 void BM_binned_sah_wide8(benchmark::State& s) { run_dynbvh(s, [](const auto& t, const auto& ex) { return binned_sah::build_wide<8>(t, {}, ex); }); }
 void BM_binned_sah_then_wide8(benchmark::State& s) { run_dynbvh(s, [](const auto& t, const auto& ex) { return make_wide<8>(binned_sah::build(t, {}, ex), ex); }); }
 
+// The traced layout (8-wide nodes, leaves in SIMD blocks of 8, wide_blocks.hpp) straight from each
+// builder: direct wide emission with leaves sized for blocks, then packing; morton_wide (morton_wide.hpp)
+// without and with blocks.
+void BM_morton_wide8(benchmark::State& s) { run_dynbvh(s, [](const auto& t, const auto& ex) { return morton_wide::build<8>(std::span<const Trianglef>(t), {}, ex); }); }
+void BM_morton_wide8_blocks(benchmark::State& s) {
+    run_dynbvh(s, [](const auto& t, const auto& ex) { return make_wide_blocks(morton_wide::build<8>(std::span<const Trianglef>(t), {}, ex), t, ex); });
+}
+void BM_lbvh_wide8_blocks(benchmark::State& s) {
+    run_dynbvh(s, [](const auto& t, const auto& ex) { return make_wide_blocks(lbvh::build_wide<8>(t, {.leaves = block_leaves}, ex), t, ex); });
+}
+void BM_ploc_r5_wide8_blocks(benchmark::State& s) {
+    run_dynbvh(s, [](const auto& t, const auto& ex) { return make_wide_blocks(ploc::build_wide<8>(t, {.radius = 5, .leaves = block_leaves}, ex), t, ex); });
+}
+void BM_kbvh_wide8_blocks(benchmark::State& s) {
+    run_dynbvh(s, [](const auto& t, const auto& ex) {
+        kbvh::Config<> c;
+        c.builder.leaves = block_leaves;
+        return make_wide_blocks(kbvh::build_wide<8>(t, c, ex), t, ex);
+    });
+}
+
 // Refit in place of an LBVH over the same frame (the work does not depend on how far vertices moved).
 template <class Tree>
 void run_refit(benchmark::State& state, Tree tree, const std::vector<Trianglef>& tris) {
@@ -104,6 +135,10 @@ void BM_refit_wide8(benchmark::State& s) {
     const auto& tris = scene_triangles(scene_of(s.range(0)));
     run_refit(s, lbvh::build_wide<8>(std::span<const Trianglef>(tris)), tris);
 }
+void BM_refit_wide8_blocks(benchmark::State& s) {   // the traced layout: blocks reloaded, boxes refitted
+    const auto& tris = scene_triangles(scene_of(s.range(0)));
+    run_refit(s, make_wide_blocks(morton_wide::build<8>(std::span<const Trianglef>(tris)), tris), tris);
+}
 
 void run_embree(benchmark::State& state, bench::EmbreeMode mode) {
     const auto& tris = scene_triangles(scene_of(state.range(0)));
@@ -124,7 +159,7 @@ void BM_embree_low(benchmark::State& s) { run_embree(s, bench::EmbreeMode::low);
 void BM_embree_medium(benchmark::State& s) { run_embree(s, bench::EmbreeMode::medium); }
 void BM_embree_refit(benchmark::State& s) { run_embree(s, bench::EmbreeMode::refit); }
 
-#define DYNBVH_SCENES ->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond)->UseRealTime()->MinTime(1.0)
+#define DYNBVH_SCENES ->Arg(0)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime()->MinTime(1.0)
 BENCHMARK(BM_embree_low) DYNBVH_SCENES;
 BENCHMARK(BM_lbvh) DYNBVH_SCENES;
 BENCHMARK(BM_lbvh63) DYNBVH_SCENES;
@@ -140,10 +175,16 @@ BENCHMARK(BM_kbvh_then_wide8) DYNBVH_SCENES;
 BENCHMARK(BM_kbvh_wide8) DYNBVH_SCENES;
 BENCHMARK(BM_binned_sah_then_wide8) DYNBVH_SCENES;
 BENCHMARK(BM_binned_sah_wide8) DYNBVH_SCENES;
+BENCHMARK(BM_morton_wide8) DYNBVH_SCENES;
+BENCHMARK(BM_morton_wide8_blocks) DYNBVH_SCENES;
+BENCHMARK(BM_lbvh_wide8_blocks) DYNBVH_SCENES;
+BENCHMARK(BM_ploc_r5_wide8_blocks) DYNBVH_SCENES;
+BENCHMARK(BM_kbvh_wide8_blocks) DYNBVH_SCENES;
 BENCHMARK(BM_embree_medium) DYNBVH_SCENES;
 BENCHMARK(BM_embree_refit) DYNBVH_SCENES;
 BENCHMARK(BM_refit_binary) DYNBVH_SCENES;
 BENCHMARK(BM_refit_wide8) DYNBVH_SCENES;
+BENCHMARK(BM_refit_wide8_blocks) DYNBVH_SCENES;
 
 } // namespace
 

@@ -1,12 +1,16 @@
-// Single-ray closest-hit trace speed of our binary and 4-wide traversals next to Embree 3's
-// rtcIntersect1 (LOW and MEDIUM build quality), on the same frames, the same primary camera rays and
-// the same thread counts in one run, so every figure reads as a ratio to Embree measured beside it.
+// Closest-hit trace speed of our binary and wide traversals next to Embree 3's rtcIntersect1 and its
+// packets rtcIntersect8 / rtcIntersect16 (LOW and MEDIUM build quality), on the same frames, the same
+// primary camera rays and the same thread counts in one run, so every figure reads as a ratio to
+// Embree measured beside it (/low, /med: rtcIntersect1; /epkt: Embree's best packet figure).
 //
-//   dynbvh-bench-trace [--threads 1,2] [--res 854x480] [--reps 5] [--leaf 8] [--scenes cloth-ball,n-body,funnel,bunny,dragon]
-//                      [--only METHOD]   (--x=v works too; --help)
+//   dynbvh-bench-trace [--threads 1,2] [--res 854x480] [--reps 5] [--leaf 8]
+//                      [--scenes cloth-ball,n-body,funnel,lattice,bunny,dragon] [--only METHOD]   (--x=v works too; --help)
 //
-// Scenes: the middle frame of the built-in cloth-ball, n-body and funnel (scene camera), and the
-// Stanford bunny and dragon from DYNBVH_DATA_DIR when present (a camera that frames the mesh).
+// Scenes: the middle frame of the built-in cloth-ball, n-body and funnel (scene camera), `lattice`
+// (scenes/lattice.hpp: 101k long thin triangles of beams crossing the scene, turned off the axes), and
+// the Stanford bunny and dragon from DYNBVH_DATA_DIR when present (a camera that frames the mesh).
+// "mwide8 blk": morton_wide (the 8-wide tree straight from the sorted Morton codes) with block leaves.
+// Packets: 4x2 pixels (8 rays) or 4x4 (16) inside each 16x16 tile, coherent context for Embree.
 // Trees: LBVH, PLOC (r = 5) and binned SAH, prim::indexed, each traced binary (traverse.hpp) and
 // converted to 4-wide and 8-wide ("wide8") nodes (wide.hpp); trace::robust unless the row says "fast";
 // "pre" = prim::copied. 8-wide nodes are tested with AVX when compiled with it (-march=native,
@@ -29,11 +33,14 @@
 
 #include <dynbvh/binned_sah.hpp>
 #include <dynbvh/io/obj.hpp>
+#include <dynbvh/kbvh.hpp>
 #include <dynbvh/io/ply.hpp>
 #include <dynbvh/lbvh.hpp>
+#include <dynbvh/morton_wide.hpp>
 #include <dynbvh/ploc.hpp>
 #include <dynbvh/sah.hpp>
 #include <scenes/builtin.hpp>
+#include <scenes/lattice.hpp>
 #include <dynbvh/traverse.hpp>
 #include <dynbvh/wide.hpp>
 #include <dynbvh/wide_blocks.hpp>
@@ -63,6 +70,12 @@ struct SceneData {
 
 bool load_scene(const std::string& name, SceneData& out) {
     out.name = name;
+    if (name == "lattice") {   // long thin crossing beams (scenes/lattice.hpp)
+        io::Frame f = scenes::lattice();
+        out.tris = std::move(f.triangles);
+        out.camera = f.camera;
+        return true;
+    }
     if (name == "bunny" || name == "dragon") {
         const std::string path = std::string(DYNBVH_DATA_DIR) + (name == "bunny" ? "/meshes/bun_zipper.ply" : "/meshes/dragon_100k.obj");
         try {
@@ -90,6 +103,33 @@ struct Method {
     std::vector<double> ms[2];   // per thread-count slot
 };
 
+/// Packets of N = 8 (4x2 pixels) or 16 (4x4) rays over each tile: `isect(rays, valid, prims)` traces
+/// the packet's rays (valid[k] == 0 for pixels outside the image) and writes their hit prims.
+template <int N, class Isect>
+void trace_packets(const study::RayGen& gen, int threads, std::vector<std::uint32_t>& out, const Isect& isect) {
+    constexpr int pw = 4, ph = N / 4;
+    const int w = gen.width();
+    exec::omp{.threads = threads}.for_tasks(gen.tile_count(), [&](std::size_t k) {
+        const study::Tile t = gen.tile(k);
+        Rayf rays[N];
+        int valid[N];
+        std::uint32_t prims[N];
+        for (int y0 = t.y0; y0 < t.y1; y0 += ph)
+            for (int x0 = t.x0; x0 < t.x1; x0 += pw) {
+                for (int j = 0; j < N; ++j) {
+                    const int x = x0 + j % pw, y = y0 + j / pw;
+                    valid[j] = x < t.x1 && y < t.y1;
+                    rays[j] = gen.ray(valid[j] ? x : x0, valid[j] ? y : y0);
+                }
+                isect(rays, valid, prims);
+                for (int j = 0; j < N; ++j) {
+                    const int x = x0 + j % pw, y = y0 + j / pw;
+                    if (valid[j]) out[std::size_t(y) * std::size_t(w) + std::size_t(x)] = prims[j];
+                }
+            }
+    });
+}
+
 template <class Isect>
 void trace_image(const study::RayGen& gen, int threads, std::vector<std::uint32_t>& out, const Isect& isect) {
     const int w = gen.width();
@@ -106,7 +146,7 @@ int main(int argc, char** argv) {
     std::vector<int> thread_counts = {1, 2};
     int width = 854, height = 480, reps = 5;
     std::uint32_t max_leaf = LeafConfig{}.max_leaf_size;   // --leaf=N: most references per leaf of our trees
-    std::vector<std::string> scene_names = {"cloth-ball", "n-body", "funnel", "bunny", "dragon"};
+    std::vector<std::string> scene_names = {"cloth-ball", "n-body", "funnel", "lattice", "bunny", "dragon"};
     std::string only;   // --only=NAME: time just this method (and Embree LOW/MEDIUM), for profiling
     std::string res = "854x480";
     CLI::App app{"dynbvh-bench-trace: single-ray trace speed of our binary and wide traversals beside Embree's rtcIntersect1.",
@@ -121,7 +161,7 @@ int main(int argc, char** argv) {
     app.add_option("--leaf", max_leaf, "most references per leaf of our trees (default 8)")
         ->type_name("N")
         ->check(cli::number_in<std::uint32_t>(1, 256));
-    app.add_option("--scenes", scene_names, "cloth-ball, n-body, funnel, bunny, dragon (default all), comma separated")
+    app.add_option("--scenes", scene_names, "cloth-ball, n-body, funnel, lattice, bunny, dragon (default all), comma separated")
         ->type_name("LIST")
         ->delimiter(',');
     app.add_option("--only", only, "time just this method (and Embree LOW/MEDIUM), for profiling")->type_name("METHOD");
@@ -140,7 +180,7 @@ int main(int argc, char** argv) {
     }
     for (const std::string& n : scene_names) {
         const auto builtin = scenes::builtin_names();
-        if (n != "bunny" && n != "dragon" && std::find(builtin.begin(), builtin.end(), n) == builtin.end()) {
+        if (n != "bunny" && n != "dragon" && n != "lattice" && std::find(builtin.begin(), builtin.end(), n) == builtin.end()) {
             std::fprintf(stderr, "dynbvh-bench-trace: --scenes: unknown scene '%s' (see --help)\n", n.c_str());
             return 2;
         }
@@ -205,6 +245,10 @@ int main(int argc, char** argv) {
         const auto lbk = make_wide_blocks<8>(lbvh::build(tris, {.leaves = bleaves}, bex), tris, bex);
         const auto pbk = make_wide_blocks<8>(ploc::build(tris, {.radius = 5, .leaves = bleaves}, bex), tris, bex);
         const auto sbk = make_wide_blocks<8>(binned_sah::build(tris, {.leaves = bleaves}, bex), tris, bex);
+        kbvh::Config<> kcfg;   // presplit (default budget) + PLOC r = 5
+        kcfg.builder.leaves = bleaves;
+        const auto kbk = make_wide_blocks<8>(kbvh::build(tris, kcfg, bex), tris, bex);
+        const auto mwk = make_wide_blocks(morton_wide::build<8>(tris, {}, bex), tris, bex);   // morton_wide.hpp
         const auto pw8b8 = make_wide_blocks<8, 8>(pl, tris, bex);
         const auto pw8b4 = make_wide_blocks<8, 4>(pl, tris, bex);
 
@@ -222,6 +266,27 @@ int main(int argc, char** argv) {
         };
         add("embree-low", [&](const Rayf& r) { return elow.intersect(r).prim; });
         add("embree-medium", [&](const Rayf& r) { return emed.intersect(r).prim; });
+        // Embree's packets (rtcIntersect8 on 4x2 pixels, rtcIntersect16 on 4x4, coherent context)
+        auto add_packets = [&](std::string name, auto isect, auto n) {
+            methods.push_back({std::move(name), [isect](const study::RayGen& g, int th, std::vector<std::uint32_t>& out) {
+                                   trace_packets<decltype(n)::value>(g, th, out, isect);
+                               }, {}});
+        };
+        auto embree_packets = [&](const bench::EmbreeBvh& eb, auto n) {
+            return [&eb](const Rayf* rays, const int* valid, std::uint32_t* prims) {
+                constexpr int N = decltype(n)::value;
+                Hitf h[N];
+                eb.intersect_packet<N>(rays, valid, h);
+                for (int k = 0; k < N; ++k) prims[k] = h[k].prim;
+            };
+        };
+        using P8 = std::integral_constant<int, 8>;
+        using P16 = std::integral_constant<int, 16>;
+        add_packets("embree-low x8", embree_packets(elow, P8{}), P8{});
+        add_packets("embree-low x16", embree_packets(elow, P16{}), P16{});
+        add_packets("embree-medium x8", embree_packets(emed, P8{}), P8{});
+        add_packets("embree-medium x16", embree_packets(emed, P16{}), P16{});
+        const std::size_t first_ours = methods.size();   // methods[0], [1]: Embree LOW / MEDIUM rtcIntersect1
         add("lbvh binary", [&](const Rayf& r) { return intersect(lb, tris, r).prim; });
         add("lbvh wide", [&](const Rayf& r) { return intersect(lw, tris, r).prim; });
         add("ploc binary", [&](const Rayf& r) { return intersect(pl, tris, r).prim; });
@@ -240,6 +305,9 @@ int main(int argc, char** argv) {
         add("lbvh wide8 blk", [&](const Rayf& r) { return intersect(lbk, tris, r).prim; });
         add("ploc wide8 blk", [&](const Rayf& r) { return intersect(pbk, tris, r).prim; });
         add("sah wide8 blk", [&](const Rayf& r) { return intersect(sbk, tris, r).prim; });
+        add("kbvh wide8 blk", [&](const Rayf& r) { return intersect(kbk, tris, r).prim; });
+        add("mwide8 blk", [&](const Rayf& r) { return intersect(mwk, tris, r).prim; });
+        add("mwide8 blk fast", [&](const Rayf& r) { return intersect<trace::fast>(mwk, tris, r).prim; });
         add("ploc wide8 blk fast", [&](const Rayf& r) { return intersect<trace::fast>(pbk, tris, r).prim; });
         add("sah wide8 blk fast", [&](const Rayf& r) { return intersect<trace::fast>(sbk, tris, r).prim; });
         add("ploc w8 blk8 dfl", [&](const Rayf& r) { return intersect(pw8b8, tris, r).prim; });
@@ -250,14 +318,14 @@ int main(int argc, char** argv) {
         std::vector<std::uint32_t> a(nrays), b(nrays), e(nrays);
         std::size_t hits = 0;
         std::string agree;
-        for (std::size_t m = 2; m + 1 < 8; m += 2) {
+        for (std::size_t m = first_ours; m + 1 < first_ours + 6; m += 2) {
             methods[m].trace(gen, build_threads, a);
             methods[m + 1].trace(gen, build_threads, b);
             std::size_t diff = 0;
             for (std::size_t i = 0; i < nrays; ++i) diff += a[i] != b[i];
             agree += " " + methods[m].name.substr(0, methods[m].name.find(' ')) + ":" + std::to_string(diff);
             // the 8-wide tree of the same binary tree
-            methods[first_wide8 + (m - 2) / 2].trace(gen, build_threads, b);
+            methods[first_wide8 + (m - first_ours) / 2].trace(gen, build_threads, b);
             diff = 0;
             for (std::size_t i = 0; i < nrays; ++i) diff += a[i] != b[i];
             agree += "/" + std::to_string(diff);
@@ -272,25 +340,31 @@ int main(int argc, char** argv) {
             for (std::size_t i = 0; i < nrays; ++i) diff += a[i] != b[i];
             agree += std::string(" ") + pair + ":" + std::to_string(diff);
         }
-        methods[2].trace(gen, build_threads, a);   // lbvh binary, for the hit count below
+        methods[first_ours].trace(gen, build_threads, a);   // lbvh binary, for the hit count below
         methods[0].trace(gen, build_threads, e);
         std::size_t emb_diff = 0;
         for (std::size_t i = 0; i < nrays; ++i) {
             hits += a[i] != invalid_prim;
             emb_diff += (a[i] != invalid_prim) != (e[i] != invalid_prim);
         }
+        // Embree's packets against its single rays on the same scene (hit/miss)
+        std::size_t pkt_diff = 0;
+        for (std::size_t m = 2; m < first_ours; ++m) {
+            methods[m].trace(gen, build_threads, b);
+            for (std::size_t i = 0; i < nrays; ++i) pkt_diff += (b[i] != invalid_prim) != (e[i] != invalid_prim);
+        }
 
         for (int r = 0; r < reps; ++r)
             for (std::size_t ti = 0; ti < thread_counts.size(); ++ti)
                 for (auto& m : methods) {
-                    if (!only.empty() && m.name != only && m.name.rfind("embree", 0) != 0) continue;
+                    if (!only.empty() && m.name != only && m.name.rfind("embree", 0) != 0) continue;   // Embree always runs
                     const auto t0 = Clock::now();
                     m.trace(gen, thread_counts[ti], a);
                     m.ms[ti].push_back(ms_since(t0));
                 }
 
-        std::printf("\n== %s: %zu triangles, %zu rays, %.1f%% hit; wide!=binary rays (4-wide/8-wide; block trees != 8-wide):%s; hit/miss differs from embree-low on %zu rays\n",
-                    sname.c_str(), tris.size(), nrays, 100.0 * double(hits) / double(nrays), agree.c_str(), emb_diff);
+        std::printf("\n== %s: %zu triangles, %zu rays, %.1f%% hit; wide!=binary rays (4-wide/8-wide; block trees != 8-wide):%s; hit/miss differs from embree-low on %zu rays (embree packets: %zu)\n",
+                    sname.c_str(), tris.size(), nrays, 100.0 * double(hits) / double(nrays), agree.c_str(), emb_diff, pkt_diff);
         const SahCost sc3{.ct = 3, .ci = 2};
         std::printf("   SAH binary/wide: lbvh %.2f/%.2f  ploc %.2f/%.2f  sah %.2f/%.2f;  wide nodes (depth) lbvh %zu (%u) ploc %zu (%u) sah %zu (%u)\n",
                     sah_cost(lb, sc3), sah_cost(lw, sc3), sah_cost(pl, sc3), sah_cost(pw, sc3), sah_cost(sb, sc3),
@@ -305,7 +379,7 @@ int main(int argc, char** argv) {
                     " serial: lbvh %.2f ms, conversion %.3f ms (%.1f%%)\n",
                     build_threads, ml, mc, 100.0 * mc / ml, mcp, ml1, mc1, 100.0 * mc1 / ml1);
         std::printf("   %-22s", "method");
-        for (int th : thread_counts) std::printf(" | %2d thr: Mrays/s  /low  /med", th);
+        for (int th : thread_counts) std::printf(" | %2d thr: Mrays/s  /low  /med /epkt", th);
         std::printf("\n");
         for (const auto& m : methods) {
             if (m.ms[0].empty()) continue;
@@ -314,7 +388,10 @@ int main(int argc, char** argv) {
                 const double mr = double(nrays) / median(m.ms[ti]) * 1e-3;
                 const double lo = double(nrays) / median(methods[0].ms[ti]) * 1e-3;
                 const double me = double(nrays) / median(methods[1].ms[ti]) * 1e-3;
-                std::printf(" |         %7.2f %5.2f %5.2f", mr, mr / lo, mr / me);
+                double pk = 0;   // Embree's best packet figure (LOW/MEDIUM x 8/16)
+                for (std::size_t p = 2; p < first_ours; ++p)
+                    if (!methods[p].ms[ti].empty()) pk = std::max(pk, double(nrays) / median(methods[p].ms[ti]) * 1e-3);
+                std::printf(" |         %7.2f %5.2f %5.2f %5.2f", mr, mr / lo, mr / me, pk > 0 ? mr / pk : 0.0);
             }
             std::printf("\n");
         }

@@ -1,5 +1,6 @@
 // Embree 3 (Debian's libembree-dev) wrapped as the reference a user would pick instead of dynbvh:
-// the same triangles, the same thread count, rebuilt or refitted per frame, traced one ray at a time.
+// the same triangles, the same thread count, rebuilt or refitted per frame, traced one ray at a time
+// (rtcIntersect1) or in packets of 8 or 16 (rtcIntersect8/16).
 #pragma once
 
 #include <embree3/rtcore.h>
@@ -8,6 +9,7 @@
 #include <span>
 #include <stdexcept>
 #include <string>
+#include <type_traits>
 
 #include <dynbvh/ray.hpp>
 #include <dynbvh/triangle.hpp>
@@ -69,6 +71,44 @@ public:
             h.prim = rh.hit.primID;
         }
         return h;
+    }
+    /// rtcIntersect8 / rtcIntersect16 on N rays (N = 8 or 16); lanes with valid[k] == 0 are inactive.
+    /// Writes each active lane's hit (or a miss) to out[k].
+    template <int N>
+    void intersect_packet(const Rayf* rays, const int* valid, Hitf* out) const {
+        static_assert(N == 8 || N == 16, "Embree packets of 8 or 16 rays");
+        using RH = std::conditional_t<N == 8, RTCRayHit8, RTCRayHit16>;
+        alignas(64) RH rh;
+        alignas(64) int v[N];
+        for (int k = 0; k < N; ++k) {
+            const Rayf& r = rays[k];
+            v[k] = valid[k] ? -1 : 0;
+            rh.ray.org_x[k] = r.org.x; rh.ray.org_y[k] = r.org.y; rh.ray.org_z[k] = r.org.z;
+            rh.ray.dir_x[k] = r.dir.x; rh.ray.dir_y[k] = r.dir.y; rh.ray.dir_z[k] = r.dir.z;
+            rh.ray.tnear[k] = r.tmin;
+            rh.ray.tfar[k] = r.tmax;
+            rh.ray.time[k] = 0;
+            rh.ray.mask[k] = ~0u;
+            rh.ray.id[k] = 0;
+            rh.ray.flags[k] = 0;
+            rh.hit.geomID[k] = RTC_INVALID_GEOMETRY_ID;
+            rh.hit.primID[k] = RTC_INVALID_GEOMETRY_ID;
+        }
+        RTCIntersectContext ctx;
+        rtcInitIntersectContext(&ctx);
+        ctx.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
+        if constexpr (N == 8) rtcIntersect8(v, scene_, &ctx, &rh);
+        else rtcIntersect16(v, scene_, &ctx, &rh);
+        for (int k = 0; k < N; ++k) {
+            Hitf h;
+            if (valid[k] && rh.hit.geomID[k] != RTC_INVALID_GEOMETRY_ID) {
+                h.t = rh.ray.tfar[k];
+                h.u = rh.hit.u[k];
+                h.v = rh.hit.v[k];
+                h.prim = rh.hit.primID[k];
+            }
+            out[k] = h;
+        }
     }
     bool occluded(const Rayf& r) const {
         RTCIntersectContext ctx;

@@ -16,6 +16,7 @@
 #include <dynbvh/kbvh.hpp>
 #include <dynbvh/lbvh.hpp>
 #include <dynbvh/mesh.hpp>
+#include <dynbvh/morton_wide.hpp>
 #include <dynbvh/node.hpp>
 #include <dynbvh/ploc.hpp>
 #include <dynbvh/presplit.hpp>
@@ -94,6 +95,12 @@ double builders(const std::vector<Triangle<typename N::scalar_type>>& tris, cons
                   kbvh::build_wide<4, N, Prim>(s, kbvh::Config<kbvh::with_lbvh>{}, ex).nodes.size() +
                   kbvh::build_wide<8, N, Prim>(s, kbvh::Config<kbvh::with_binned_sah>{}, ex).nodes.size());
     sum += double(binned_sah::build_wide<8, N, Prim>(s, {}, ex).nodes.size() + binned_sah::build_wide<4, N, Prim>(s, {}, ex).nodes.size());
+    // The wide tree straight from the Morton codes, queried and refitted.
+    auto m8 = morton_wide::build<8, N, Prim>(s, {}, ex);
+    auto m4 = morton_wide::build<4, N, Prim>(s, {.morton_bits = 63, .max_leaf_size = 4}, ex);
+    refit(m8, s, ex);
+    sum += double(intersect(m8, s, Ray<T>{.org = {0, 0, 10}, .dir = {0, 0, -1}}).t) + double(occluded(m4, s, Ray<T>{.org = {0, 0, 10}, .dir = {0, 0, -1}}));
+    sum += double(morton_wide::build(tris, {}, ex).nodes.size());
     // The std::vector overloads (node type from the triangles).
     sum += double(lbvh::build(tris, {}, ex).nodes.size() + ploc::build(tris, {}, ex).nodes.size() +
                   kbvh::build(tris, {}, ex).nodes.size() + binned_sah::build(tris, {}, ex).nodes.size());
@@ -109,6 +116,12 @@ double blocks(std::span<const Trianglef> tris, const Exec& ex) {
     const auto b84 = make_wide_blocks<8, 4>(bvh, tris, ex);
     double sum = double(intersect<trace::robust>(b8, tris, ray).t) + double(occluded<trace::fast>(b8, tris, ray));
     sum += double(intersect<trace::fast>(b84, tris, ray).t) + double(occluded<trace::robust>(b84, tris, ray));
+    // packed straight from a wide tree, and refitted in place
+    auto mb = make_wide_blocks(morton_wide::build<8>(tris, {}, ex), tris, ex);
+    auto mb4 = make_wide_blocks<4>(lbvh::build_wide<8>(tris, {.leaves = block_leaves}, ex), tris, ex);
+    refit(mb, tris, ex);
+    refit(mb4, tris, ex);
+    sum += double(intersect(mb, tris, ray).t) + double(occluded(mb4, tris, ray));
     return sum;
 }
 

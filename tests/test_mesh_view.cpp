@@ -16,6 +16,7 @@
 #include <dynbvh/kbvh.hpp>
 #include <dynbvh/lbvh.hpp>
 #include <dynbvh/mesh.hpp>
+#include <dynbvh/morton_wide.hpp>
 #include <dynbvh/ploc.hpp>
 #include <dynbvh/refit.hpp>
 #include <dynbvh/traverse.hpp>
@@ -290,6 +291,47 @@ TEST_CASE("mesh view: every builder gives the span's tree, bit for bit (binary, 
             compare_builds<8, prim::copied>(m, ex);
         }
     });
+}
+
+TEST_CASE("mesh view: morton_wide and block packing of wide trees give the span's trees") {
+    const auto all = meshes();
+    for_each_executor([&](auto ex) {
+        CAPTURE(executor_name<decltype(ex)>());
+        for (const Mesh& m : all) {
+            CAPTURE(m.name);
+            const auto flat = m.flat();
+            const std::span<const Trianglef> span(flat);
+            const auto w8 = morton_wide::build<8, Node<>, prim::indexed>(span, {}, ex);
+            CHECK(difference(morton_wide::build<8, Node<>, prim::indexed>(m.view(), {}, ex), w8) == "");
+            CHECK(difference(morton_wide::build<8, Node<>, prim::indexed>(m.strided(), {}, ex), w8) == "");
+            const auto w4 = morton_wide::build<4, Node<>, prim::copied>(span, {.morton_bits = 63}, ex);
+            CHECK(difference(morton_wide::build<4, Node<>, prim::copied>(m.view(), {.morton_bits = 63}, ex), w4) == "");
+            if (!m.indices16.empty())
+                CHECK(difference(morton_wide::build<4, Node<>, prim::copied>(m.view16(), {.morton_bits = 63}, ex), w4) == "");
+            // Blocks straight from a wide tree (the traced layout), from the view and from the span.
+            const auto blocks = make_wide_blocks(w8, span, ex);
+            CHECK(difference(make_wide_blocks(w8, m.view(), ex), blocks) == "");
+            const auto pw = ploc::build_wide<8, Node<>, prim::indexed>(m.view(), {.leaves = block_leaves}, ex);
+            CHECK(difference(make_wide_blocks<4>(pw, m.strided(), ex), make_wide_blocks<4>(pw, span, ex)) == "");
+        }
+    });
+}
+
+TEST_CASE("mesh view: refit of block trees in place equals the span's") {
+    Mesh m = sphere_mesh(32, 64);
+    const exec::serial ex;
+    auto flat = m.flat();
+    auto from_view = make_wide_blocks(ploc::build_wide<8, Node<>, prim::indexed>(m.view(), {.leaves = block_leaves}, ex), m.view(), ex);
+    auto from_span = make_wide_blocks(ploc::build_wide<8, Node<>, prim::indexed>(flat, {.leaves = block_leaves}, ex), flat, ex);
+    REQUIRE(difference(from_view, from_span) == "");
+    for (int frame = 1; frame <= 2; ++frame) {
+        move_vertices(m, float(frame));
+        flat = m.flat();
+        refit(from_view, m.strided(), ex);
+        refit(from_span, std::span<const Trianglef>(flat), ex);
+        CHECK(difference(from_view, from_span) == "");
+    }
+    CHECK(what_of([&] { refit(from_view, sphere_mesh(4, 4).view(), ex); }).find("dynbvh::refit:") == 0);
 }
 
 TEST_CASE("mesh view: builder policies (builder.hpp) take views") {

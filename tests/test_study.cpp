@@ -377,6 +377,42 @@ TEST_CASE("study: two-level runs on scenes with objects, hits like a flat tree, 
     CHECK(report.find("object space") != std::string::npos);
 }
 
+TEST_CASE("study: morton-wide (blocks by default, blocks=0, wide=4) hits exactly what lbvh hits, with no SAH") {
+    const auto out = tmp / "morton_wide";
+    std::filesystem::remove_all(out);
+    std::filesystem::create_directories(out);
+    const int rc = run_study("--scenes n-body,funnel --scale 0.05 --frames 3 --builders lbvh,morton-wide,morton-wide:blocks=0,"
+                             "morton-wide:wide=4:bits=63 --res 48x32 --images 0 --threads 2 --no-warmup --out \"" + out.string() + "\"",
+                             out / "log.txt");
+    INFO(read_all(out / "log.txt"));
+    REQUIRE(rc == 0);
+    const Json j = Json::parse(read_all(out / "study.json"));
+    CHECK(j.at("builders") == Json::array({"lbvh", "morton-wide", "morton-wide:blocks=0", "morton-wide:bits=63:wide=4"}));
+    const auto group = [&](const std::string& scene, const std::string& b) -> const Json* {
+        for (const auto& g : j.at("results"))
+            if (g.at("scene") == scene && g.at("builder") == b) return &g;
+        return nullptr;
+    };
+    for (const char* scene : {"n-body", "funnel"})
+        for (const char* b : {"morton-wide", "morton-wide:blocks=0", "morton-wide:bits=63:wide=4"}) {
+            INFO(scene << " " << b);
+            const Json* g = group(scene, b);
+            const Json* ref = group(scene, "lbvh");
+            REQUIRE(g != nullptr);
+            REQUIRE(ref != nullptr);
+            REQUIRE(g->at("per_frame").size() == 3);
+            for (std::size_t k = 0; k < 3; ++k) {
+                const auto& f = g->at("per_frame").at(k);
+                CHECK(f.at("sah").is_null());   // no binary tree
+                CHECK(f.at("memory_bytes").get<double>() > 0);
+                CHECK(f.at("hits") == ref->at("per_frame").at(k).at("hits"));   // exact traversal: the same pixels hit
+            }
+        }
+    CHECK(run_study("--builders morton-wide:wide=0 --scenes funnel --scale 0.05 --frames 1 --res 8x8 --images 0 --out \"" +
+                        out.string() + "\"", out / "bad.txt") != 0);
+    CHECK(read_all(out / "bad.txt").find("morton-wide builds a wide tree only") != std::string::npos);
+}
+
 TEST_CASE("study: bad input fails with a message naming it") {
     const auto out = tmp / "bad";
     std::filesystem::create_directories(out);

@@ -302,3 +302,83 @@ TEST_CASE("block trees deeper than max_depth: heap stack, same answers") {
     CHECK(occluded(w, ts, down));
     CHECK(intersect<trace::fast>(w, ts, down).prim == std::uint32_t(levels - 1));
 }
+
+namespace {
+
+/// Empty when the two block trees are the same bit for bit (nodes, blocks' vertices, indices, counts).
+template <class WB>
+std::string block_tree_difference(const WB& a, const WB& b) {
+    if (a.nodes.size() != b.nodes.size() || a.blocks.size() != b.blocks.size() || a.depth != b.depth ||
+        a.primitive_count != b.primitive_count || a.excluded != b.excluded)
+        return "sizes or counts differ";
+    if (std::memcmp(a.nodes.data(), b.nodes.data(), a.nodes.size() * sizeof(a.nodes[0])) != 0) return "nodes differ";
+    for (std::size_t i = 0; i < a.blocks.size(); ++i)
+        if (std::memcmp(a.blocks[i].v, b.blocks[i].v, sizeof a.blocks[i].v) != 0 ||
+            std::memcmp(a.blocks[i].prim, b.blocks[i].prim, sizeof a.blocks[i].prim) != 0 || a.blocks[i].count != b.blocks[i].count)
+            return "block " + std::to_string(i) + " differs";
+    return {};
+}
+
+/// Moves every vertex by up to `amount` (soups: each triangle on its own).
+std::vector<Trianglef> jiggled(std::vector<Trianglef> tris, float amount, std::uint64_t seed) {
+    Rng r(seed);
+    for (auto& t : tris)
+        for (Vec3f* p : {&t.p0, &t.p1, &t.p2}) *p = *p + Vec3f{r.uniform(-amount, amount), r.uniform(-amount, amount), r.uniform(-amount, amount)};
+    return tris;
+}
+
+} // namespace
+
+TEST_CASE("block trees packed from a builder's direct wide tree == packed from its binary tree, every builder") {
+    auto soup = test::random_soup(test::sanitizer_scaled(4000), 41, 0.03f);
+    soup[3].p0.y = std::numeric_limits<float>::quiet_NaN();
+    const std::span<const Trianglef> ts(soup);
+    test::for_each_executor([&](auto ex) {
+        const ploc::Config pc{.radius = 5, .leaves = block_leaves};
+        CHECK(block_tree_difference(make_wide_blocks(ploc::build_wide<8>(ts, pc, ex), ts, ex), make_wide_blocks<8>(ploc::build(ts, pc, ex), ts, ex)) == "");
+        CHECK(block_tree_difference(make_wide_blocks(lbvh::build_wide<4>(ts, {}, ex), ts, ex), make_wide_blocks<4>(lbvh::build(ts, {}, ex), ts, ex)) == "");
+        CHECK(block_tree_difference(make_wide_blocks<4>(binned_sah::build_wide<8>(ts, {}, ex), ts, ex),
+                                    make_wide_blocks<8, 4>(binned_sah::build(ts, {}, ex), ts, ex)) == "");
+        const kbvh::Config<> kc{.split = {.beta = 0.3f}};
+        CHECK(block_tree_difference(make_wide_blocks(kbvh::build_wide<8>(ts, kc, ex), ts, ex), make_wide_blocks<8>(kbvh::build(ts, kc, ex), ts, ex)) == "");
+        // prim::copied wide trees pack from their own leaf triangles
+        const auto copied = lbvh::build_wide<8, Node<>, prim::copied>(ts, {}, ex);
+        CHECK(block_tree_difference(make_wide_blocks(copied, std::span<const Trianglef>(), ex), make_wide_blocks<8>(lbvh::build(ts, {}, ex), ts, ex)) == "");
+    });
+    CHECK_THROWS_AS(make_wide_blocks(lbvh::build_wide<8>(ts), ts.first(10)), std::invalid_argument);
+}
+
+TEST_CASE("refit of a block tree in place == packing the refitted wide tree; exact hits; wrong spans throw") {
+    const auto soup = test::random_soup(test::sanitizer_scaled(3000), 43, 0.03f);
+    const std::span<const Trianglef> ts(soup);
+    test::for_each_executor([&](auto ex) {
+        for (const float amount : {0.01f, 0.3f}) {
+            CAPTURE(amount);
+            auto wide = kbvh::build_wide<8>(ts, {.split = {.beta = 0.3f}}, ex);   // fragments: triangles in several leaves
+            auto blk = make_wide_blocks(wide, ts, ex);
+            auto blk4 = make_wide_blocks<4>(wide, ts, ex);
+            const auto now = jiggled(soup, amount, 44);
+            const std::span<const Trianglef> tn(now);
+            refit(wide, tn, ex);
+            refit(blk, tn, ex);
+            refit(blk4, tn, ex);
+            CHECK(block_tree_difference(blk, make_wide_blocks(wide, tn, ex)) == "");
+            CHECK(block_tree_difference(blk4, make_wide_blocks<4>(wide, tn, ex)) == "");
+            const test::RaySet set = test::adversarial_rays(tn, test::sanitizer_scaled(60), 45);
+            const test::Reference ref = test::brute_force<trace::robust>(tn, set.rays);
+            const test::Disagreements r = test::compare_with<trace::robust>(blk, tn, set, ref);
+            CHECK_MESSAGE(r.total == 0, r.total << " disagreements with brute force (" << test::by_kind(r) << "), first: " << r.first);
+        }
+    });
+    auto blk = make_wide_blocks(lbvh::build_wide<8>(ts), ts);
+    const auto before = blk;
+    for (const auto bad : {ts.first(ts.size() - 1), ts.first(0)}) {
+        try {
+            refit(blk, bad);
+            FAIL("no exception for " << bad.size() << " triangles");
+        } catch (const std::invalid_argument& e) {
+            CHECK(std::string(e.what()).find("dynbvh::refit") == 0);
+        }
+        CHECK(block_tree_difference(blk, before) == "");
+    }
+}

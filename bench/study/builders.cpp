@@ -29,7 +29,7 @@ constexpr KindName kind_names[] = {
     {Kind::refit, "refit"},         {Kind::embree_low, "embree-low"},
     {Kind::embree_medium, "embree-medium"}, {Kind::embree_refit, "embree-refit"},
     {Kind::dynamic, "auto"},        {Kind::two_level, "two-level"},
-    {Kind::embree_two_level, "embree-two-level"},
+    {Kind::embree_two_level, "embree-two-level"}, {Kind::morton_wide, "morton-wide"},
 };
 
 std::string fmt_float(float v) {
@@ -127,7 +127,7 @@ std::string BuilderSpec::base() const {
 }
 
 std::string BuilderSpec::name() const {
-    const BuilderSpec d{.kind = kind};
+    const BuilderSpec d{.kind = kind, .blocks = default_blocks_of(kind)};
     std::string s = base();
     if ((kind == Kind::dynamic || kind == Kind::two_level) && over == Kind::lbvh) s += ":lbvh";
     if (radius != d.radius) s += ":r=" + std::to_string(radius);
@@ -172,7 +172,9 @@ BuilderSpec parse_builder(const std::string& spec) {
     }
     const bool ours = !b.is_embree();
     const bool uses_radius = b.kind == Kind::ploc || b.kind == Kind::kbvh;
-    const bool uses_bits = b.kind == Kind::ploc || b.kind == Kind::kbvh || b.kind == Kind::lbvh || b.kind == Kind::refit;
+    const bool uses_bits = b.kind == Kind::ploc || b.kind == Kind::kbvh || b.kind == Kind::lbvh || b.kind == Kind::refit ||
+                           b.kind == Kind::morton_wide;
+    b.blocks = BuilderSpec::default_blocks_of(b.kind);
     for (std::size_t i = 1; i < parts.size(); ++i) {
         if (b.kind == Kind::dynamic && parse_dynamic_knob(b, spec, parts[i], i)) continue;
         if (b.kind == Kind::two_level && parse_two_level_knob(b, spec, parts[i], i)) continue;
@@ -224,6 +226,10 @@ BuilderSpec parse_builder(const std::string& spec) {
             reject();
         }
     }
+    if (b.kind == Kind::morton_wide && b.wide == 0)
+        throw std::invalid_argument("builder '" + spec + "': morton-wide builds a wide tree only (wide=4 or 8)");
+    if (b.kind == Kind::morton_wide && b.max_leaf > 255)
+        throw std::invalid_argument("builder '" + spec + "': morton-wide's leaf must be in 1..255");
     if (b.blocks && b.wide == 0) {
         if (parts.size() > 1 && spec.find("blocks=1") != std::string::npos)
             throw std::invalid_argument("builder '" + spec + "': blocks=1 needs a wide tree (wide=4 or 8)");

@@ -21,6 +21,7 @@
 namespace dynbvh::study {
 
 enum class Kind { lbvh, kbvh, ploc, binned_sah, refit, embree_low, embree_medium, embree_refit,
+                  morton_wide, ///< "morton-wide": dynbvh::morton_wide, the wide tree straight from the Morton codes
                   dynamic,  ///< "auto": dynbvh::Dynamic (refit or rebuild per frame) over `over`
                   two_level, ///< "two-level": dynbvh::TwoLevel over the frame's objects, `over` for every tree
                   embree_two_level ///< "embree-two-level": Embree 3 instancing over the frame's objects
@@ -54,6 +55,7 @@ struct BuilderSpec {
                                    ///< conversion is part of the timed build); wide=0: the binary traversal
     bool blocks = default_blocks;  ///< wide tree with leaves in SIMD triangle blocks of `wide` lanes, the binary
                                    ///< tree built with block_leaves (wide_blocks.hpp); needs wide=4 or 8
+                                   ///< (morton-wide: on by default, see default_blocks_of)
     Kind over = Kind::ploc;        ///< auto, two-level: the builder its (re)builds use (ploc or lbvh: "auto:lbvh")
     double threshold = 1.3;        ///< auto: rebuild past this many times the last rebuild's SAH ("th=1.5")
     bool async = false;            ///< auto: rebuild on a background thread, swap when ready ("async=1")
@@ -68,6 +70,9 @@ struct BuilderSpec {
     std::string name() const;
     /// The base name ("ploc").
     std::string base() const;
+    /// `blocks` by default for `k`: morton-wide builds only the traced layout, so its leaves go into
+    /// blocks unless blocks=0 (its build is cheap enough for the packing to pay at every resolution).
+    static bool default_blocks_of(Kind k) noexcept { return k == Kind::morton_wide ? true : default_blocks; }
 };
 
 /// Parses "ploc:r=16:leaf=4". Throws std::invalid_argument naming the spec and the problem.

@@ -12,6 +12,7 @@
 #include <dynbvh/bvh.hpp>
 #include <dynbvh/kbvh.hpp>
 #include <dynbvh/lbvh.hpp>
+#include <dynbvh/morton_wide.hpp>
 #include <dynbvh/ploc.hpp>
 #include <dynbvh/refit.hpp>
 #include <dynbvh/sah.hpp>
@@ -72,6 +73,10 @@ public:
 
     void build(std::span<const Trianglef> tris) override {
         previous_ = std::move(current_);   // freed untimed in release_previous()
+        if (spec_.kind == Kind::morton_wide) {   // the traced tree only, no binary tree
+            build_morton_wide(tris);
+            return;
+        }
         build_binary(tris);
         // The 4- or 8-wide tree traced when spec_.wide (timed as part of the build); with blocks its
         // leaves are copied into triangle blocks and the binary tree keeps its leaf part.
@@ -91,6 +96,18 @@ public:
         auto wide = make_wide<W>(bvh, ex_);   // copies an empty leaf part
         wide.leaves() = std::move(leaves);
         return wide;
+    }
+    void build_morton_wide(std::span<const Trianglef> tris) {
+        const morton_wide::Config cfg{.morton_bits = spec_.morton_bits, .max_leaf_size = spec_.max_leaf};
+        if (spec_.wide == 4) {
+            auto w = morton_wide::build<4, Node<>, Prim>(tris, cfg, ex_);
+            if (spec_.blocks) current_.blocks4 = make_wide_blocks(std::move(w), tris, ex_);
+            else current_.wide4 = std::move(w);
+        } else {
+            auto w = morton_wide::build<8, Node<>, Prim>(tris, cfg, ex_);
+            if (spec_.blocks) current_.blocks8 = make_wide_blocks(std::move(w), tris, ex_);
+            else current_.wide8 = std::move(w);
+        }
     }
     void build_binary(std::span<const Trianglef> tris) {
         LeafConfig leaves{.max_leaf_size = spec_.max_leaf};
@@ -133,7 +150,11 @@ public:
     void trace(std::span<const Trianglef> tris, const RayGen& gen, std::span<std::uint32_t> out) override {
         current_.trace(spec_, backend_, tris, gen, out);
     }
-    std::optional<double> sah() const override { return sah_cost(current_.bvh, SahCost{.ct = 3, .ci = 2}, ex_); }
+    /// The binary tree's SAH (the thesis's measure); none for morton-wide, which builds no binary tree.
+    std::optional<double> sah() const override {
+        if (spec_.kind == Kind::morton_wide) return std::nullopt;
+        return sah_cost(current_.bvh, SahCost{.ct = 3, .ci = 2}, ex_);
+    }
     std::optional<std::size_t> memory_bytes() const override { return current_.memory_bytes(spec_); }
     /// Single-ray queries (effect rays) go through the same tree as trace().
     Hitf intersect(std::span<const Trianglef> tris, const Rayf& r) const override { return current_.intersect(spec_, tris, r); }

@@ -55,7 +55,8 @@ const char* const footer = R"(Scenes (--scenes, comma separated; default: every 
 
 Builders (--builders, comma separated; default: all available)
   lbvh, kbvh (presplit + PLOC), ploc (r = 5), binned-sah, refit (LBVH at frame 0, refitted after),
-  embree-low, embree-medium, embree-refit (when built with Embree 3)
+  morton-wide (the wide tree straight from the sorted Morton codes, leaves in SIMD triangle blocks; no
+  binary tree, so no SAH column), embree-low, embree-medium, embree-refit (when built with Embree 3)
   auto, auto:lbvh (strategy dynbvh::Dynamic: refit each frame, rebuild with PLOC or LBVH past th x the last
   rebuild's SAH; knobs th=1.3, async=1 (rebuild in the background, swap when ready), r=, bits=)
   two-level, two-level:lbvh (dynbvh::TwoLevel: one tree per object of the frame, built once for rigid

@@ -45,18 +45,16 @@ void refit_binary(Bvh<NodeT, Prim>& bvh, Source tris, const Exec& ex) {
     }
 }
 
-/// The wide refit over any triangle source (see refit(WideBvh&, ...) below).
-template <class WNodeT, class Prim, class Source, class Exec>
-void refit_wide(WideBvh<WNodeT, Prim>& bvh, Source tris, const Exec& ex) {
-    using T = typename WNodeT::scalar_type;
+/// The wide refit's box passes over `bvh.nodes`: every leaf slot k of node i gets leaf_box(node, k),
+/// then inner slots bottom-up, each node finished by the last of its inner children (an atomic count
+/// per node, no assumption on the node order). Shared by the refit of index, copied and block trees.
+template <class WideTree, class LeafBox, class Exec>
+void refit_wide_boxes(WideTree& bvh, const LeafBox& leaf_box, const Exec& ex) {
+    using WNodeT = typename WideTree::node_type;
     constexpr int W = WNodeT::width;
-    check_triangles(bvh, tris.size(), "refit");
-    if (bvh.empty()) return;
-    if constexpr (WideBvh<WNodeT, Prim>::precomputed)
-        ex.for_each(0, bvh.prim_ids.size(), [&](std::size_t s) { bvh.leaf_triangles[s] = tris[bvh.prim_ids[s]]; });
     const std::size_t n = bvh.nodes.size();
     constexpr std::size_t none = ~std::size_t(0);
-    // Step 1: leaf slots from the triangles; each node's parent slot (node * W + slot) and inner child count.
+    // Step 1: leaf slots; each node's parent slot (node * W + slot) and inner child count.
     scratch_vector<std::size_t> parent(n);
     scratch_vector<std::atomic<std::uint32_t>> pending(n);
     scratch_vector<std::uint8_t> starts(n);   // no inner child: a walk starts here (pending changes in step 2)
@@ -71,9 +69,7 @@ void refit_wide(WideBvh<WNodeT, Prim>& bvh, Source tris, const Exec& ex) {
                 ++inner;
                 continue;
             }
-            AABB<T> box;
-            for (std::size_t s = node.child[k]; s < std::size_t(node.child[k]) + node.count[k]; ++s) box.extend(tris[bvh.prim_ids[s]].bounds());
-            node.set_bounds(k, box);
+            node.set_bounds(k, leaf_box(node, k));
         }
         pending[i].store(inner, std::memory_order_relaxed);
         starts[i] = std::uint8_t(inner == 0 ? 1 : 0);
@@ -88,6 +84,22 @@ void refit_wide(WideBvh<WNodeT, Prim>& bvh, Source tris, const Exec& ex) {
             c = p;
         }
     }, 1024);
+}
+
+/// The wide refit over any triangle source (see refit(WideBvh&, ...) below).
+template <class WNodeT, class Prim, class Source, class Exec>
+void refit_wide(WideBvh<WNodeT, Prim>& bvh, Source tris, const Exec& ex) {
+    static_assert(WideBvh<WNodeT, Prim>::block_lanes == 0, "dynbvh::refit: block trees refit through wide_blocks.hpp");
+    using T = typename WNodeT::scalar_type;
+    check_triangles(bvh, tris.size(), "refit");
+    if (bvh.empty()) return;
+    if constexpr (WideBvh<WNodeT, Prim>::precomputed)
+        ex.for_each(0, bvh.prim_ids.size(), [&](std::size_t s) { bvh.leaf_triangles[s] = tris[bvh.prim_ids[s]]; });
+    refit_wide_boxes(bvh, [&](const WNodeT& node, int k) {
+        AABB<T> box;
+        for (std::size_t s = node.child[k]; s < std::size_t(node.child[k]) + node.count[k]; ++s) box.extend(tris[bvh.prim_ids[s]].bounds());
+        return box;
+    }, ex);
 }
 
 } // namespace detail
@@ -113,9 +125,8 @@ void refit(Bvh<NodeT, Prim>& bvh, const MeshView<typename NodeT::scalar_type, In
 /// prim::copied the leaf triangles are updated too). The topology stays; every slot box equals, bit for
 /// bit, the refitted binary tree's box of the binary node the slot was collapsed from (min/max unions agree
 /// in any order, a -0/+0 tie aside). make_wide of the refitted binary tree may differ: it would open nodes
-/// by their new areas. O(nodes + references), parallel:
-/// leaf slots of every node first, then inner slots bottom-up, each node finished by the last of its
-/// inner children to finish (an atomic count per node, no assumption on the node order).
+/// by their new areas. O(nodes + references), parallel (detail::refit_wide_boxes). Block trees
+/// (wide_blocks.hpp) have their own overload, which reloads the blocks' vertices too.
 template <class WNodeT, class Prim, class Exec = exec::default_executor>
 void refit(WideBvh<WNodeT, Prim>& bvh, std::span<const Triangle<typename WNodeT::scalar_type>> tris, const Exec& ex = {}) {
     detail::refit_wide(bvh, tris, ex);

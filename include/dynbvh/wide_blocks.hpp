@@ -31,8 +31,9 @@
 /// lanes empty. `block_leaves` (Ci 0.5, at most 8 per leaf: about 6 on the bunny) builds the binary
 /// tree for blocks of 8: fewer nodes to traverse, fuller blocks.
 ///
-/// Dynamic scenes: a block tree cannot be refitted (the blocks hold the old vertices); refit the
-/// binary tree and convert again (refit() on a block tree does not compile).
+/// Dynamic scenes: refit(block tree, tris) reloads every block's vertices from `tris` and refits the
+/// boxes in place (no conversion); make_wide_blocks also packs a wide tree straight from a builder's
+/// build_wide (no binary tree), which is the traced layout's fastest build.
 #pragma once
 
 #include <cstddef>
@@ -49,6 +50,7 @@
 #include "detail/triangle_block.hpp"
 #include "executor.hpp"
 #include "mesh.hpp"
+#include "refit.hpp"
 #include "wide.hpp"
 
 namespace dynbvh {
@@ -93,23 +95,13 @@ using wide_blocks_bvh_of = WideBvh<WideNode<typename B::scalar_type, typename B:
 
 namespace detail {
 
-/// make_wide_blocks over any triangle source (a span or a MeshView): one code path.
-template <int W, int L, class NodeT, class Prim, class Source, class Exec>
-wide_blocks_bvh_of<Bvh<NodeT, Prim>, W, L> make_wide_blocks(const Bvh<NodeT, Prim>& bvh, Source tris, const Exec& ex) {
-    static_assert(std::is_same_v<typename NodeT::scalar_type, float>, "dynbvh::make_wide_blocks: triangle blocks are float");
-    using Index = typename NodeT::index_type;
-    check_triangles(bvh, tris.size(), "make_wide_blocks", !Bvh<NodeT, Prim>::precomputed);
-    wide_blocks_bvh_of<Bvh<NodeT, Prim>, W, L> w;
-    {
-        wide_bvh_of<Bvh<NodeT, Prim>, W> topology;   // the nodes of make_wide<W>
-        collapse_to_wide<W>(bvh, topology, ex);
-        w.nodes = std::move(topology.nodes);
-        w.depth = topology.depth;
-    }
-    w.primitive_count = bvh.primitive_count;
-    w.excluded = bvh.excluded;
-    if (w.nodes.empty()) return w;
-
+/// Packs the leaves of `w` (its nodes set, leaf slots naming prim_ids ranges) into blocks and points each
+/// leaf slot at its first block. `tri_of(slot)` is the triangle of prim_ids slot `slot`. O(references),
+/// parallel: leaves are numbered in node order (a count and a scan), then packed (pack_triangle_blocks).
+template <class WideTree, class Index, class TriOf, class Exec>
+void pack_wide_leaves(WideTree& w, std::span<const Index> prim_ids, const TriOf& tri_of, const Exec& ex) {
+    constexpr int W = WideTree::node_type::width;
+    constexpr int L = WideTree::block_lanes;
     // Step 1: leaves per node, and each node's first leaf (leaves are numbered in node order).
     const std::size_t nn = w.nodes.size();
     std::vector<std::size_t> first_leaf(nn);
@@ -128,20 +120,76 @@ wide_blocks_bvh_of<Bvh<NodeT, Prim>, W, L> make_wide_blocks(const Bvh<NodeT, Pri
     });
     // Step 3: pack, then point each leaf slot at its first block.
     std::vector<std::size_t> first_block;
-    if constexpr (Bvh<NodeT, Prim>::precomputed)
-        pack_triangle_blocks<L>(std::span<const LeafRange>(leaves), std::span<const Index>(bvh.prim_ids),
-                                [&](std::size_t s) -> const Triangle<float>& { return bvh.leaf_triangles[s]; }, w.blocks,
-                                first_block, ex);
-    else
-        pack_triangle_blocks<L>(std::span<const LeafRange>(leaves), std::span<const Index>(bvh.prim_ids),
-                                [&](std::size_t s) -> decltype(auto) { return tris[bvh.prim_ids[s]]; }, w.blocks,
-                                first_block, ex);
+    pack_triangle_blocks<L>(std::span<const LeafRange>(leaves), prim_ids, tri_of, w.blocks, first_block, ex);
     ex.for_each(0, nn, [&](std::size_t i) {
         std::size_t j = first_leaf[i];
         for (int k = 0; k < W; ++k)
-            if (w.nodes[i].count[k] != 0) w.nodes[i].child[k] = Index(first_block[j++]);
+            if (w.nodes[i].count[k] != 0) w.nodes[i].child[k] = typename WideTree::index_type(first_block[j++]);
     });
+}
+
+/// pack_wide_leaves over a tree's leaf part `src` (prim::indexed: the user's triangles `tris`, a span or
+/// a MeshView; prim::copied: its own leaf triangles).
+template <class WideTree, class Src, class Source, class Exec>
+void pack_from(WideTree& w, const Src& src, Source tris, const Exec& ex) {
+    using Index = typename WideTree::index_type;
+    if constexpr (Src::precomputed)
+        pack_wide_leaves(w, std::span<const Index>(src.prim_ids), [&](std::size_t s) -> const Triangle<float>& { return src.leaf_triangles[s]; }, ex);
+    else
+        pack_wide_leaves(w, std::span<const Index>(src.prim_ids), [&](std::size_t s) -> decltype(auto) { return tris[src.prim_ids[s]]; }, ex);
+}
+
+/// make_wide_blocks of a binary tree over any triangle source (a span or a MeshView): one code path.
+template <int W, int L, class NodeT, class Prim, class Source, class Exec>
+wide_blocks_bvh_of<Bvh<NodeT, Prim>, W, L> blocks_of_binary(const Bvh<NodeT, Prim>& bvh, Source tris, const Exec& ex) {
+    static_assert(std::is_same_v<typename NodeT::scalar_type, float>, "dynbvh::make_wide_blocks: triangle blocks are float");
+    check_triangles(bvh, tris.size(), "make_wide_blocks", !Bvh<NodeT, Prim>::precomputed);
+    wide_blocks_bvh_of<Bvh<NodeT, Prim>, W, L> w;
+    {
+        wide_bvh_of<Bvh<NodeT, Prim>, W> topology;   // the nodes of make_wide<W>
+        collapse_to_wide<W>(bvh, topology, ex);
+        w.nodes = std::move(topology.nodes);
+        w.depth = topology.depth;
+    }
+    w.primitive_count = bvh.primitive_count;
+    w.excluded = bvh.excluded;
+    if (!w.nodes.empty()) pack_from(w, bvh, tris, ex);
     return w;
+}
+
+/// make_wide_blocks of a wide tree over any triangle source: one code path.
+template <int L, class WN, class Prim, class Source, class Exec>
+WideBvh<WN, prim::blocks<(L == 0 ? WN::width : L)>> blocks_of_wide(WideBvh<WN, Prim>&& wide, Source tris, const Exec& ex) {
+    static_assert(std::is_same_v<typename WN::scalar_type, float>, "dynbvh::make_wide_blocks: triangle blocks are float");
+    static_assert(!requires { Prim::lanes; }, "dynbvh::make_wide_blocks: the tree already has block leaves");
+    check_triangles(wide, tris.size(), "make_wide_blocks", !WideBvh<WN, Prim>::precomputed);
+    WideBvh<WN, prim::blocks<(L == 0 ? WN::width : L)>> w;
+    w.nodes = std::move(wide.nodes);
+    w.depth = wide.depth;
+    w.primitive_count = wide.primitive_count;
+    w.excluded = wide.excluded;
+    if (!w.nodes.empty()) pack_from(w, wide, tris, ex);
+    return w;
+}
+
+/// The block tree refit over any triangle source: one code path.
+template <class WN, int L, class Source, class Exec>
+void refit_blocks(WideBvh<WN, prim::blocks<L>>& bvh, Source tris, const Exec& ex) {
+    check_triangles(bvh, tris.size(), "refit");
+    if (bvh.empty()) return;
+    ex.for_each(0, bvh.blocks.size(), [&](std::size_t i) {
+        TriangleBlock<L>& b = bvh.blocks[i];
+        for (int k = 0; k < int(b.count); ++k) b.set(k, tris[b.prim[k]], b.prim[k]);
+    }, 1024);
+    refit_wide_boxes(bvh, [&](const WN& node, int k) {
+        AABB<float> box;
+        std::size_t left = node.count[k];
+        for (const TriangleBlock<L>* b = bvh.blocks.data() + node.child[k]; left != 0; ++b) {
+            for (int j = 0; j < int(b->count); ++j) box.extend(b->triangle(j).bounds());
+            left -= std::min<std::size_t>(left, b->count);
+        }
+        return box;
+    }, ex);
 }
 
 } // namespace detail
@@ -153,7 +201,7 @@ template <int W = 8, int L = W, class NodeT, class Prim, class Exec = exec::defa
 wide_blocks_bvh_of<Bvh<NodeT, Prim>, W, L> make_wide_blocks(const Bvh<NodeT, Prim>& bvh,
                                                             std::span<const Triangle<typename NodeT::scalar_type>> tris,
                                                             const Exec& ex = {}) {
-    return detail::make_wide_blocks<W, L>(bvh, tris, ex);
+    return detail::blocks_of_binary<W, L>(bvh, tris, ex);
 }
 
 /// The same from an indexed mesh read in place (mesh.hpp): the same tree as from make_triangles' array,
@@ -162,12 +210,44 @@ template <int W = 8, int L = W, class NodeT, class Prim, class Index, class Exec
 wide_blocks_bvh_of<Bvh<NodeT, Prim>, W, L> make_wide_blocks(const Bvh<NodeT, Prim>& bvh,
                                                             const MeshView<typename NodeT::scalar_type, Index>& mesh,
                                                             const Exec& ex = {}) {
-    return detail::make_wide_blocks<W, L>(bvh, mesh, ex);
+    return detail::blocks_of_binary<W, L>(bvh, mesh, ex);
 }
 
-/// Block trees hold copies of the vertices and cannot be refitted: refit the binary tree and call
-/// make_wide_blocks again.
-template <class WN, int L, class... Rest>
-void refit(WideBvh<WN, prim::blocks<L>>&, Rest&&...) = delete;
+/// Packs the leaves of a float wide tree (prim::indexed or prim::copied; e.g. straight from a builder's
+/// build_wide) into blocks of L triangles: the same nodes (leaf slots pointing at blocks), the same hits.
+/// With the tree passed as an rvalue its node array is reused. The traced layout in one line:
+/// `auto t = dynbvh::make_wide_blocks(dynbvh::ploc::build_wide<8>(tris, {.leaves = dynbvh::block_leaves}), tris);`
+/// `tris`: as for the binary overload. O(references), parallel over `ex`, no node conversion.
+template <int L = 0, class WN, class Prim, class Exec = exec::default_executor>
+WideBvh<WN, prim::blocks<(L == 0 ? WN::width : L)>> make_wide_blocks(WideBvh<WN, Prim> wide,
+                                                                      std::span<const Triangle<typename WN::scalar_type>> tris,
+                                                                      const Exec& ex = {}) {
+    return detail::blocks_of_wide<L>(std::move(wide), tris, ex);
+}
+
+/// The same from an indexed mesh read in place (mesh.hpp): the same tree as from make_triangles' array.
+template <int L = 0, class WN, class Prim, class Index, class Exec = exec::default_executor>
+WideBvh<WN, prim::blocks<(L == 0 ? WN::width : L)>> make_wide_blocks(WideBvh<WN, Prim> wide,
+                                                                      const MeshView<typename WN::scalar_type, Index>& mesh,
+                                                                      const Exec& ex = {}) {
+    return detail::blocks_of_wide<L>(std::move(wide), mesh, ex);
+}
+
+/// Refits a block tree in place: every block lane reloads its triangle from `tris` (by the user index
+/// it holds), then the boxes are recomputed as the wide refit does (refit.hpp), leaf slot boxes from the
+/// blocks. Same contract as refit(WideBvh): a span whose size is not `bvh.primitive_count` throws
+/// std::invalid_argument, `bvh` unchanged. The result equals make_wide_blocks of the refitted index
+/// tree it was packed from, bit for bit (boxes, blocks, hits). O(nodes + references), parallel.
+template <class WN, int L, class Exec = exec::default_executor>
+void refit(WideBvh<WN, prim::blocks<L>>& bvh, std::span<const Triangle<float>> tris, const Exec& ex = {}) {
+    detail::refit_blocks(bvh, tris, ex);
+}
+
+/// The same from an indexed mesh read in place (mesh.hpp); the same blocks and boxes as from
+/// make_triangles' array, bit for bit.
+template <class WN, int L, class Index, class Exec = exec::default_executor>
+void refit(WideBvh<WN, prim::blocks<L>>& bvh, const MeshView<float, Index>& mesh, const Exec& ex = {}) {
+    detail::refit_blocks(bvh, mesh, ex);
+}
 
 } // namespace dynbvh
