@@ -152,9 +152,13 @@ double meshes(const MeshView<typename N::scalar_type, Index>& mesh, const Exec& 
     sum += double(intersect(w, mesh, ray).t) + double(occluded(w4, mesh, ray)) + double(d.nodes.size());
     Dynamic<builder::lbvh, N, Prim, Exec> dyn({}, ex);
     sum += dyn.update(mesh).sah_after;
+    sum += double(morton_wide::build<8, N, Prim>(mesh, {}, ex).nodes.size() + morton_wide::build<4>(mesh).nodes.size());
     if constexpr (std::is_same_v<T, float>) {
-        const auto blocks = make_wide_blocks<8>(b, mesh, ex);
+        auto blocks = make_wide_blocks<8>(b, mesh, ex);
         sum += double(intersect<trace::fast>(blocks, mesh, ray).t);
+        refit(blocks, mesh, ex);
+        auto straight = make_wide_blocks(morton_wide::build<8, N, Prim>(mesh, {}, ex), mesh, ex);
+        sum += double(occluded(straight, mesh, ray));
     }
     sum += double(ploc::build(mesh).nodes.size() + mesh.stride() + mesh.indices().size() + mesh.vertex_count());
     sum += double(mesh.vertex(0).x) + double(mesh[0].p0.x) + double(mesh.empty());

@@ -2,9 +2,11 @@
 /// @file mesh.hpp
 /// An indexed triangle mesh read in place, like Embree's geometry buffers: a vertex buffer with a
 /// stride (positions interleaved with other attributes are fine) and an index buffer of 16- or 32-bit
-/// triangles. Every builder, refit, traversal, make_wide_blocks and Dynamic::update accept a MeshView
-/// wherever they accept a `std::span<const Triangle<T>>`, with the same results bit for bit as over
-/// `make_triangles(vertices, indices)`, and without that flattening copy:
+/// triangles. Every builder (morton_wide included), refit (binary, wide, block trees), traversal,
+/// make_wide_blocks and Dynamic::update accept a MeshView wherever they accept a
+/// `std::span<const Triangle<T>>`, with the same results bit for bit as over
+/// `make_triangles(vertices, indices)`, and without that flattening copy (TwoLevel objects, validate
+/// and epo still take spans):
 /// @code
 ///   const dynbvh::MeshView<float> mesh(vertices, indices);   // std::span<const Vec3f>, std::span<const std::uint32_t>
 ///   auto bvh = dynbvh::ploc::build(mesh);                    // the tree make_triangles' array would give
