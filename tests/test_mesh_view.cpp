@@ -277,43 +277,46 @@ TEST_CASE("mesh view: reads the triangles make_triangles gives, with any stride 
     CHECK(difference(bd, ploc::build(flatd)) == "");
 }
 
-TEST_CASE("mesh view: every builder gives the span's tree, bit for bit (binary, 4- and 8-wide, blocks)") {
+/// Calls f(mesh, executor) for every test mesh and executor.
+template <class F>
+void for_each_mesh_and_executor(F&& f) {
     const auto all = meshes();
     for_each_executor([&](auto ex) {
         CAPTURE(executor_name<decltype(ex)>());
         for (const Mesh& m : all) {
             CAPTURE(m.name);
-            compare_builds<0, prim::indexed>(m, ex);
-            compare_builds<0, prim::copied>(m, ex);
-            compare_builds<4, prim::indexed>(m, ex);
-            compare_builds<4, prim::copied>(m, ex);
-            compare_builds<8, prim::indexed>(m, ex);
-            compare_builds<8, prim::copied>(m, ex);
+            f(m, ex);
         }
     });
 }
 
+TEST_CASE("mesh view: every builder gives the span's tree, bit for bit (binary, 4- and 8-wide, blocks)") {
+    for_each_mesh_and_executor([](const Mesh& m, auto ex) {
+        compare_builds<0, prim::indexed>(m, ex);
+        compare_builds<0, prim::copied>(m, ex);
+        compare_builds<4, prim::indexed>(m, ex);
+        compare_builds<4, prim::copied>(m, ex);
+        compare_builds<8, prim::indexed>(m, ex);
+        compare_builds<8, prim::copied>(m, ex);
+    });
+}
+
 TEST_CASE("mesh view: morton_wide and block packing of wide trees give the span's trees") {
-    const auto all = meshes();
-    for_each_executor([&](auto ex) {
-        CAPTURE(executor_name<decltype(ex)>());
-        for (const Mesh& m : all) {
-            CAPTURE(m.name);
-            const auto flat = m.flat();
-            const std::span<const Trianglef> span(flat);
-            const auto w8 = morton_wide::build<8, Node<>, prim::indexed>(span, {}, ex);
-            CHECK(difference(morton_wide::build<8, Node<>, prim::indexed>(m.view(), {}, ex), w8) == "");
-            CHECK(difference(morton_wide::build<8, Node<>, prim::indexed>(m.strided(), {}, ex), w8) == "");
-            const auto w4 = morton_wide::build<4, Node<>, prim::copied>(span, {.morton_bits = 63}, ex);
-            CHECK(difference(morton_wide::build<4, Node<>, prim::copied>(m.view(), {.morton_bits = 63}, ex), w4) == "");
-            if (!m.indices16.empty())
-                CHECK(difference(morton_wide::build<4, Node<>, prim::copied>(m.view16(), {.morton_bits = 63}, ex), w4) == "");
-            // Blocks straight from a wide tree (the traced layout), from the view and from the span.
-            const auto blocks = make_wide_blocks(w8, span, ex);
-            CHECK(difference(make_wide_blocks(w8, m.view(), ex), blocks) == "");
-            const auto pw = ploc::build_wide<8, Node<>, prim::indexed>(m.view(), {.leaves = block_leaves}, ex);
-            CHECK(difference(make_wide_blocks<4>(pw, m.strided(), ex), make_wide_blocks<4>(pw, span, ex)) == "");
-        }
+    for_each_mesh_and_executor([](const Mesh& m, auto ex) {
+        const auto flat = m.flat();
+        const std::span<const Trianglef> span(flat);
+        const auto w8 = morton_wide::build<8, Node<>, prim::indexed>(span, {}, ex);
+        CHECK(difference(morton_wide::build<8, Node<>, prim::indexed>(m.view(), {}, ex), w8) == "");
+        CHECK(difference(morton_wide::build<8, Node<>, prim::indexed>(m.strided(), {}, ex), w8) == "");
+        const auto w4 = morton_wide::build<4, Node<>, prim::copied>(span, {.morton_bits = 63}, ex);
+        CHECK(difference(morton_wide::build<4, Node<>, prim::copied>(m.view(), {.morton_bits = 63}, ex), w4) == "");
+        if (!m.indices16.empty())
+            CHECK(difference(morton_wide::build<4, Node<>, prim::copied>(m.view16(), {.morton_bits = 63}, ex), w4) == "");
+        // Blocks straight from a wide tree (the traced layout), from the view and from the span.
+        const auto blocks = make_wide_blocks(w8, span, ex);
+        CHECK(difference(make_wide_blocks(w8, m.view(), ex), blocks) == "");
+        const auto pw = ploc::build_wide<8, Node<>, prim::indexed>(m.view(), {.leaves = block_leaves}, ex);
+        CHECK(difference(make_wide_blocks<4>(pw, m.strided(), ex), make_wide_blocks<4>(pw, span, ex)) == "");
     });
 }
 
