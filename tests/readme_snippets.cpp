@@ -20,6 +20,7 @@
 #include <dynbvh/io/frames.hpp>   // read_mesh, open_frames (link dynbvh::io)
 #include <dynbvh/kbvh.hpp>
 #include <dynbvh/lbvh.hpp>
+#include <dynbvh/mesh.hpp>
 #include <dynbvh/ploc.hpp>
 #include <dynbvh/refit.hpp>
 #include <dynbvh/sah.hpp>
@@ -159,6 +160,43 @@ TEST_CASE("README tour: a mesh, a frame sequence, BART") {
         REQUIRE(lights.size() == 1);
         CHECK(lights[0].position == Vec3f{1, 2, 3});
     }
+}
+
+namespace {
+struct MyVertex {   // a vertex with attributes after the position
+    Vec3f position;
+    float u, v;
+};
+} // namespace
+
+TEST_CASE("README tour: an indexed mesh read in place") {
+    const io::Mesh source = sheet(8, 0);
+    std::vector<Vec3f> vertices = source.vertices;
+    std::vector<std::uint32_t> indices;
+    for (const auto& f : source.faces) indices.insert(indices.end(), {f[0], f[1], f[2]});
+    std::vector<MyVertex> buffer;
+    for (const Vec3f& p : vertices) buffer.push_back({p, 0.5f, 0.25f});
+
+    MeshView<float> view(vertices, indices);                 // your buffers, read in place: no copy
+    MeshView<float> fat(buffer.data(), buffer.size(), sizeof(MyVertex), indices);   // strided, 16/32-bit indices
+    auto tree = ploc::build(view);                           // the tree make_triangles' array gives, bit for bit
+    refit(tree, view);                                       // after moving the vertices in place
+
+    const auto flat = make_triangles<float, std::uint32_t>(vertices, indices);
+    const auto want = ploc::build(flat);
+    REQUIRE(tree.nodes.size() == want.nodes.size());
+    for (std::size_t i = 0; i < want.nodes.size(); ++i) {
+        CHECK(tree.nodes[i].min == want.nodes[i].min);
+        CHECK(tree.nodes[i].max == want.nodes[i].max);
+    }
+    CHECK(std::vector<std::uint32_t>(tree.prim_ids.begin(), tree.prim_ids.end()) ==
+          std::vector<std::uint32_t>(want.prim_ids.begin(), want.prim_ids.end()));
+    REQUIRE(fat.size() == flat.size());
+    for (std::size_t k = 0; k < flat.size(); ++k) CHECK(fat[k].p1 == flat[k].p1);
+    for (Vec3f& p : vertices) p.z += 0.5f;                    // moved in place: the view sees it
+    refit(tree, view);
+    CHECK(tree.bounds().min.z == doctest::Approx(want.bounds().min.z + 0.5f));
+    CHECK(validate(tree, make_triangles<float, std::uint32_t>(vertices, indices)).ok());
 }
 
 TEST_CASE("README tour: the builders and their Configs") {

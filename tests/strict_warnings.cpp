@@ -15,6 +15,7 @@
 #include <dynbvh/io/scene.hpp>
 #include <dynbvh/kbvh.hpp>
 #include <dynbvh/lbvh.hpp>
+#include <dynbvh/mesh.hpp>
 #include <dynbvh/morton_wide.hpp>
 #include <dynbvh/node.hpp>
 #include <dynbvh/packet.hpp>
@@ -37,6 +38,7 @@
 #include <cstdint>
 #include <span>
 #include <string>
+#include <type_traits>
 #include <vector>
 
 namespace strict {
@@ -146,6 +148,38 @@ double dynamic_scenes(std::span<const Trianglef> tris, const Exec& ex) {
     return r.sah_after + double(dyn.bvh().nodes.size());
 }
 
+// Indexed meshes read in place (mesh.hpp): every builder, wide build, refit, traversal, blocks and Dynamic.
+template <class N, class Prim, class Index, class Exec>
+double meshes(const MeshView<typename N::scalar_type, Index>& mesh, const Exec& ex) {
+    using T = typename N::scalar_type;
+    const Ray<T> ray{.org = {0, 0, 10}, .dir = {0, 0, -1}};
+    auto a = lbvh::build<N, Prim>(mesh, {}, ex);
+    auto b = ploc::build<N, Prim>(mesh, {}, ex);
+    auto c = kbvh::build<N, Prim>(mesh, kbvh::Config<kbvh::with_lbvh>{}, ex);
+    auto d = binned_sah::build<N, Prim>(mesh, {}, ex);
+    auto w = ploc::build_wide<8, N, Prim>(mesh, {}, ex);
+    auto w4 = lbvh::build_wide<4, N, Prim>(mesh, {}, ex);
+    double sum = double(kbvh::build_wide<8, N, Prim>(mesh, {}, ex).nodes.size() +
+                        binned_sah::build_wide<4, N, Prim>(mesh, {}, ex).nodes.size());
+    refit(a, mesh, ex);
+    refit(w, mesh, ex);
+    sum += double(intersect(a, mesh, ray).t) + double(occluded<trace::fast>(b, mesh, ray)) + double(intersect(c, mesh, ray).t);
+    sum += double(intersect(w, mesh, ray).t) + double(occluded(w4, mesh, ray)) + double(d.nodes.size());
+    Dynamic<builder::lbvh, N, Prim, Exec> dyn({}, ex);
+    sum += dyn.update(mesh).sah_after;
+    sum += double(morton_wide::build<8, N, Prim>(mesh, {}, ex).nodes.size() + morton_wide::build<4>(mesh).nodes.size());
+    if constexpr (std::is_same_v<T, float>) {
+        auto blocks = make_wide_blocks<8>(b, mesh, ex);
+        sum += double(intersect<trace::fast>(blocks, mesh, ray).t);
+        refit(blocks, mesh, ex);
+        auto straight = make_wide_blocks(morton_wide::build<8, N, Prim>(mesh, {}, ex), mesh, ex);
+        sum += double(occluded(straight, mesh, ray));
+    }
+    sum += double(ploc::build(mesh).nodes.size() + mesh.stride() + mesh.indices().size() + mesh.vertex_count());
+    sum += double(mesh.vertex(0).x) + double(mesh[0].p0.x) + double(mesh.empty());
+    return sum;
+}
+
 template <class Exec>
 double all(const Exec& ex) {
     double sum = 0;
@@ -156,6 +190,9 @@ double all(const Exec& ex) {
     sum += builders<Node<double, std::uint64_t>, prim::indexed>({}, ex);
     sum += blocks(std::span<const Trianglef>(), ex);
     sum += dynamic_scenes(std::span<const Trianglef>(), ex);
+    sum += meshes<Node<float>, prim::indexed>(MeshView<float>(), ex);
+    sum += meshes<Node<float>, prim::copied>(MeshView<float, std::uint16_t>(), ex);
+    sum += meshes<Node<double>, prim::indexed>(MeshView<double>(), ex);
     return sum;
 }
 
@@ -213,6 +250,9 @@ template struct dynbvh::AABB<float>;
 template struct dynbvh::AABB<double>;
 template struct dynbvh::Triangle<float>;
 template struct dynbvh::Triangle<double>;
+template class dynbvh::MeshView<float>;
+template class dynbvh::MeshView<float, std::uint16_t>;
+template class dynbvh::MeshView<double>;
 template struct dynbvh::Ray<float>;
 template struct dynbvh::Ray<double>;
 template struct dynbvh::Hit<float>;

@@ -45,6 +45,7 @@
 #include "bvh.hpp"
 #include "cost.hpp"
 #include "executor.hpp"
+#include "mesh.hpp"
 #include "refit.hpp"
 #include "sah.hpp"
 
@@ -148,7 +149,52 @@ public:
 
     /// Brings the tree to this frame's triangles `tris` (any count; the array the caller traces with
     /// until the next update(), for prim::indexed) and says how. `tris` is not modified nor kept.
-    FrameReport update(std::span<const triangle_type> tris) {
+    FrameReport update(std::span<const triangle_type> tris) { return update_from(tris); }
+
+    /// The same over an indexed mesh read in place (mesh.hpp), typically one view whose vertices move
+    /// from frame to frame: the decisions and trees the span of make_triangles(vertices, indices) would
+    /// give, without that copy (an async rebuild still copies the triangles it builds over). A refit
+    /// frame allocates nothing when every vertex is finite.
+    template <class Index>
+    FrameReport update(const MeshView<scalar_type, Index>& mesh) { return update_from(mesh); }
+
+    /// The tree serving the current frame (empty before the first update()).
+    const bvh_type& bvh() const noexcept { return tree_; }
+    /// SAH of the current tree at the current frame.
+    double sah() const noexcept { return sah_; }
+    /// SAH the current tree had right after its build (what rebuild_threshold multiplies).
+    double rebuild_sah() const noexcept { return sah_rebuilt_; }
+    /// Whether a background rebuild is running or finished but not yet swapped in.
+    bool rebuild_pending() const noexcept { return job_ != nullptr; }
+    /// Blocks until the background rebuild (if any) has finished; the next update() swaps it in.
+    void wait_for_rebuild() {
+        if (job_ && job_->thread.joinable()) job_->thread.join();
+    }
+    /// The policy's knobs.
+    const config_type& config() const noexcept { return cfg_; }
+    /// Number of update() calls so far.
+    std::size_t frames() const noexcept { return frame_; }
+
+private:
+    struct Job {
+        bvh_type tree;
+        double sah = 0;
+        std::vector<std::uint32_t> excluded_ids;
+    };
+    /// A background rebuild: its thread and its result slot (heap-allocated, so the policy may move).
+    struct Background {
+        std::thread thread;
+        std::mutex mutex;
+        bool done = false;                // guarded by mutex
+        std::optional<Job> result;        // guarded by mutex
+        std::exception_ptr error;         // guarded by mutex
+    };
+
+    bool grown() const noexcept { return sah_ > cfg_.rebuild_threshold * sah_rebuilt_; }
+
+    /// update() over any triangle source (a span or a MeshView): one code path.
+    template <class Source>
+    FrameReport update_from(const Source tris) {
         const auto start = std::chrono::steady_clock::now();
         FrameReport r;
         r.frame = frame_++;
@@ -191,42 +237,9 @@ public:
         return r;
     }
 
-    /// The tree serving the current frame (empty before the first update()).
-    const bvh_type& bvh() const noexcept { return tree_; }
-    /// SAH of the current tree at the current frame.
-    double sah() const noexcept { return sah_; }
-    /// SAH the current tree had right after its build (what rebuild_threshold multiplies).
-    double rebuild_sah() const noexcept { return sah_rebuilt_; }
-    /// Whether a background rebuild is running or finished but not yet swapped in.
-    bool rebuild_pending() const noexcept { return job_ != nullptr; }
-    /// Blocks until the background rebuild (if any) has finished; the next update() swaps it in.
-    void wait_for_rebuild() {
-        if (job_ && job_->thread.joinable()) job_->thread.join();
-    }
-    /// The policy's knobs.
-    const config_type& config() const noexcept { return cfg_; }
-    /// Number of update() calls so far.
-    std::size_t frames() const noexcept { return frame_; }
-
-private:
-    struct Job {
-        bvh_type tree;
-        double sah = 0;
-        std::vector<std::uint32_t> excluded_ids;
-    };
-    /// A background rebuild: its thread and its result slot (heap-allocated, so the policy may move).
-    struct Background {
-        std::thread thread;
-        std::mutex mutex;
-        bool done = false;                // guarded by mutex
-        std::optional<Job> result;        // guarded by mutex
-        std::exception_ptr error;         // guarded by mutex
-    };
-
-    bool grown() const noexcept { return sah_ > cfg_.rebuild_threshold * sah_rebuilt_; }
-
     /// Indices of the triangles with a NaN or infinite vertex, ascending (the builders exclude them).
-    std::vector<std::uint32_t> nonfinite_ids(std::span<const triangle_type> tris) const {
+    template <class Source>
+    std::vector<std::uint32_t> nonfinite_ids(const Source tris) const {
         const std::size_t count = ex_.reduce(std::size_t(0), tris.size(), std::size_t(0),
                                              [&](std::size_t i) { return tris[i].is_finite() ? std::size_t(0) : std::size_t(1); },
                                              [](std::size_t a, std::size_t b) { return a + b; });
@@ -238,18 +251,22 @@ private:
         return ids;
     }
 
-    void rebuild_now(std::span<const triangle_type> tris, std::vector<std::uint32_t> bad) {
+    template <class Source>
+    void rebuild_now(const Source tris, std::vector<std::uint32_t> bad) {
         tree_ = Builder::template build<NodeT, Prim>(tris, cfg_.builder, ex_);
         sah_ = sah_rebuilt_ = sah_cost(tree_, cfg_.cost, ex_);
         excluded_ids_ = std::move(bad);
         built_ = true;
     }
 
-    /// Starts the background rebuild over a copy of `tris`.
-    void start_background(std::span<const triangle_type> tris, FrameReport& r) {
+    /// Starts the background rebuild over a copy of `tris` (the caller may change its triangles after update()).
+    template <class Source>
+    void start_background(const Source tris, FrameReport& r) {
         auto bg = std::make_unique<Background>();
         Background* slot = bg.get();
-        std::vector<triangle_type> copy(tris.begin(), tris.end());
+        std::vector<triangle_type> copy;
+        copy.reserve(tris.size());
+        for (std::size_t i = 0; i < tris.size(); ++i) copy.push_back(tris[i]);
         std::vector<std::uint32_t> bad = excluded_ids_;
         bg->thread = std::thread([slot, copy = std::move(copy), bad = std::move(bad), cfg = cfg_, ex = ex_]() mutable {
             std::optional<Job> job;

@@ -24,9 +24,11 @@
 #include "detail/emit_wide.hpp"
 #include "executor.hpp"
 #include "lbvh.hpp"
+#include "mesh.hpp"
 #include "ploc.hpp"
 #include "presplit.hpp"
 #include "detail/references.hpp"
+#include "detail/triangle_source.hpp"
 
 namespace dynbvh::kbvh {
 
@@ -64,10 +66,12 @@ struct Config {
     typename Builder::config builder{};   ///< knobs of the builder over the fragments, leaf collapse included
 };
 
-/// Presplit fragments of `tris` and the builder's raw tree over them (tree leaves index the returned
-/// references, whose `prim` names the user's triangle). For users who emit their own layout.
-template <class Builder = with_ploc, class T, class Exec>
-std::pair<References<T>, BinaryTree> build_tree(std::span<const Triangle<T>> tris, const Config<Builder>& cfg, const Exec& ex) {
+/// Presplit fragments of `tris` (a std::span<const Triangle<T>> or a MeshView, mesh.hpp) and the builder's
+/// raw tree over them (tree leaves index the returned references, whose `prim` names the user's triangle).
+/// For users who emit their own layout.
+template <class Builder = with_ploc, dynbvh::detail::triangle_source Source, class Exec>
+std::pair<References<dynbvh::detail::source_scalar_t<Source>>, BinaryTree> build_tree(Source tris, const Config<Builder>& cfg,
+                                                                                     const Exec& ex) {
     auto refs = make_references(tris, ex);
     if (presplit::budget(refs.size(), cfg.split) > 0) refs = presplit::split(refs, tris, cfg.split, ex);
     auto tree = Builder::build_tree(refs, cfg.builder, ex);
@@ -85,6 +89,16 @@ Bvh<NodeT, Prim> build(std::span<const Triangle<typename NodeT::scalar_type>> tr
     return emit_bvh<NodeT, Prim>(tree, refs, tris, cfg.builder.leaves, ex);
 }
 
+/// Builds a KBVH over an indexed mesh read in place (mesh.hpp): the tree `build` gives over
+/// `make_triangles(vertices, indices)`, bit for bit, without that copy. NodeT defaults to Node<T>.
+template <class NodeT = void, class Prim = prim::indexed, class Builder = with_ploc, class Exec = exec::default_executor, class T,
+          class Index>
+Bvh<dynbvh::detail::node_for_t<NodeT, T>, Prim> build(const MeshView<T, Index>& mesh, const Config<Builder>& cfg = {},
+                                                      const Exec& ex = {}) {
+    auto [refs, tree] = build_tree<Builder>(mesh, cfg, ex);
+    return emit_bvh<dynbvh::detail::node_for_t<NodeT, T>, Prim>(tree, refs, mesh, cfg.builder.leaves, ex);
+}
+
 /// Builds a KBVH straight into the W-wide layout (W = 4 or 8; detail/emit_wide.hpp): the tree
 /// `make_wide<W>(build<NodeT, Prim, Builder>(tris, cfg, ex), ex)` gives, bit for bit, without the binary nodes.
 template <int W = 8, class NodeT = Node<>, class Prim = prim::indexed, class Builder = with_ploc, class Exec = exec::default_executor>
@@ -92,6 +106,15 @@ wide_bvh_of<Bvh<NodeT, Prim>, W> build_wide(std::span<const Triangle<typename No
                                             const Config<Builder>& cfg = {}, const Exec& ex = {}) {
     auto [refs, tree] = build_tree<Builder>(tris, cfg, ex);
     return emit_wide_bvh<W, NodeT, Prim>(tree, refs, tris, cfg.builder.leaves, ex);
+}
+
+/// build_wide over an indexed mesh read in place (mesh.hpp); same tree as over make_triangles' array.
+template <int W = 8, class NodeT = void, class Prim = prim::indexed, class Builder = with_ploc,
+          class Exec = exec::default_executor, class T, class Index>
+wide_bvh_of<Bvh<dynbvh::detail::node_for_t<NodeT, T>, Prim>, W> build_wide(const MeshView<T, Index>& mesh,
+                                                                         const Config<Builder>& cfg = {}, const Exec& ex = {}) {
+    auto [refs, tree] = build_tree<Builder>(mesh, cfg, ex);
+    return emit_wide_bvh<W, dynbvh::detail::node_for_t<NodeT, T>, Prim>(tree, refs, mesh, cfg.builder.leaves, ex);
 }
 
 /// The same for a std::vector of triangles of any scalar, the node type following the triangles:

@@ -26,9 +26,11 @@
 #include "detail/emit.hpp"
 #include "detail/emit_wide.hpp"
 #include "executor.hpp"
+#include "mesh.hpp"
 #include "detail/morton.hpp"
 #include "detail/references.hpp"
 #include "detail/scratch.hpp"
+#include "detail/triangle_source.hpp"
 
 namespace dynbvh::lbvh {
 
@@ -115,17 +117,43 @@ BinaryTree build_tree(References<T>& refs, const Config& cfg, const Exec& ex) {
     return detail::build_tree(refs, cfg, static_cast<detail::RawNodeInfo<T>*>(nullptr), ex);
 }
 
+namespace detail {
+
+/// build and build_wide over any triangle source (a span or a MeshView): one code path.
+template <class NodeT, class Prim, class Source, class Exec>
+Bvh<NodeT, Prim> build(Source tris, const Config& cfg, const Exec& ex) {
+    using T = typename NodeT::scalar_type;
+    auto refs = make_references(tris, ex);
+    // The bottom-up construction computes every node's box and leaf collapse as it goes.
+    scratch_vector<RawNodeInfo<T>> info(refs.size() > 1 ? refs.size() - 1 : 0);
+    const auto tree = build_tree(refs, cfg, info.data(), ex);
+    return dynbvh::detail::emit_from_info<NodeT, Prim>(tree, refs, tris, std::span<const RawNodeInfo<T>>(info), ex);
+}
+
+template <int W, class NodeT, class Prim, class Source, class Exec>
+wide_bvh_of<Bvh<NodeT, Prim>, W> build_wide(Source tris, const Config& cfg, const Exec& ex) {
+    using T = typename NodeT::scalar_type;
+    auto refs = make_references(tris, ex);
+    scratch_vector<RawNodeInfo<T>> info(refs.size() > 1 ? refs.size() - 1 : 0);
+    const auto tree = build_tree(refs, cfg, info.data(), ex);
+    return dynbvh::detail::emit_wide_from_info<W, NodeT, Prim>(tree, refs, tris, std::span<const RawNodeInfo<T>>(info), ex);
+}
+
+} // namespace detail
+
 /// Builds an LBVH over `tris`. One line: `auto bvh = dynbvh::lbvh::build(tris);`
 /// Triangles with NaN/infinite vertices are left out and counted in Bvh::excluded.
 /// @tparam NodeT node layout, @tparam Prim prim::indexed or prim::copied, @tparam Exec backend.
 template <class NodeT = Node<>, class Prim = prim::indexed, class Exec = exec::default_executor>
 Bvh<NodeT, Prim> build(std::span<const Triangle<typename NodeT::scalar_type>> tris, const Config& cfg = {}, const Exec& ex = {}) {
-    using T = typename NodeT::scalar_type;
-    auto refs = make_references(tris, ex);
-    // The bottom-up construction computes every node's box and leaf collapse as it goes.
-    scratch_vector<detail::RawNodeInfo<T>> info(refs.size() > 1 ? refs.size() - 1 : 0);
-    const auto tree = detail::build_tree(refs, cfg, info.data(), ex);
-    return dynbvh::detail::emit_from_info<NodeT, Prim>(tree, refs, tris, std::span<const detail::RawNodeInfo<T>>(info), ex);
+    return detail::build<NodeT, Prim>(tris, cfg, ex);
+}
+
+/// Builds an LBVH over an indexed mesh read in place (mesh.hpp): the tree `build` gives over
+/// `make_triangles(vertices, indices)`, bit for bit, without that copy. NodeT defaults to Node<T>.
+template <class NodeT = void, class Prim = prim::indexed, class Exec = exec::default_executor, class T, class Index>
+Bvh<dynbvh::detail::node_for_t<NodeT, T>, Prim> build(const MeshView<T, Index>& mesh, const Config& cfg = {}, const Exec& ex = {}) {
+    return detail::build<dynbvh::detail::node_for_t<NodeT, T>, Prim>(mesh, cfg, ex);
 }
 
 /// Builds an LBVH straight into the W-wide layout (W = 4 or 8; detail/emit_wide.hpp): the tree
@@ -134,11 +162,14 @@ Bvh<NodeT, Prim> build(std::span<const Triangle<typename NodeT::scalar_type>> tr
 template <int W = 8, class NodeT = Node<>, class Prim = prim::indexed, class Exec = exec::default_executor>
 wide_bvh_of<Bvh<NodeT, Prim>, W> build_wide(std::span<const Triangle<typename NodeT::scalar_type>> tris,
                                             const Config& cfg = {}, const Exec& ex = {}) {
-    using T = typename NodeT::scalar_type;
-    auto refs = make_references(tris, ex);
-    scratch_vector<detail::RawNodeInfo<T>> info(refs.size() > 1 ? refs.size() - 1 : 0);
-    const auto tree = detail::build_tree(refs, cfg, info.data(), ex);
-    return dynbvh::detail::emit_wide_from_info<W, NodeT, Prim>(tree, refs, tris, std::span<const detail::RawNodeInfo<T>>(info), ex);
+    return detail::build_wide<W, NodeT, Prim>(tris, cfg, ex);
+}
+
+/// build_wide over an indexed mesh read in place (mesh.hpp); same tree as over make_triangles' array.
+template <int W = 8, class NodeT = void, class Prim = prim::indexed, class Exec = exec::default_executor, class T, class Index>
+wide_bvh_of<Bvh<dynbvh::detail::node_for_t<NodeT, T>, Prim>, W> build_wide(const MeshView<T, Index>& mesh, const Config& cfg = {},
+                                                                         const Exec& ex = {}) {
+    return detail::build_wide<W, dynbvh::detail::node_for_t<NodeT, T>, Prim>(mesh, cfg, ex);
 }
 
 /// The same for a std::vector of triangles of any scalar, the node type following the triangles:

@@ -38,6 +38,8 @@
 #include "detail/morton.hpp"
 #include "detail/references.hpp"
 #include "detail/scratch.hpp"
+#include "detail/triangle_source.hpp"
+#include "mesh.hpp"
 #include "executor.hpp"
 #include "wide.hpp"
 
@@ -206,15 +208,12 @@ void build_nodes(const Key* keys, const References<T>& refs, std::uint32_t max_l
 
 } // namespace detail
 
-/// Builds a W-wide BVH over `tris` straight from the sorted Morton codes (see the file comment).
-/// Triangles with NaN/infinite vertices are left out and counted in `excluded`. Throws
-/// std::invalid_argument for morton_bits other than 30 or 63 or a max_leaf_size outside 1..255,
-/// std::length_error beyond 2^31 - 1 triangles. O(n) passes plus the radix sort, parallel over `ex`.
-/// @tparam W 4 or 8, @tparam NodeT the binary node type whose scalar and index the wide node takes,
-/// @tparam Prim prim::indexed or prim::copied.
-template <int W = 8, class NodeT = Node<>, class Prim = prim::indexed, class Exec = exec::default_executor>
-WideBvh<WideNode<typename NodeT::scalar_type, typename NodeT::index_type, W>, Prim>
-build(std::span<const Triangle<typename NodeT::scalar_type>> tris, const Config& cfg = {}, const Exec& ex = {}) {
+namespace detail {
+
+/// build over any triangle source (a span or a MeshView): one code path.
+template <int W, class NodeT, class Prim, class Source, class Exec>
+WideBvh<WideNode<typename NodeT::scalar_type, typename NodeT::index_type, W>, Prim> build(Source tris, const Config& cfg,
+                                                                                         const Exec& ex) {
     using T = typename NodeT::scalar_type;
     using Result = WideBvh<WideNode<T, typename NodeT::index_type, W>, Prim>;
     morton::check_bits(cfg.morton_bits, "dynbvh::morton_wide::build");
@@ -230,7 +229,7 @@ build(std::span<const Triangle<typename NodeT::scalar_type>> tris, const Config&
     auto run = [&](auto key) {
         using Key = decltype(key);
         const scratch_vector<Key> keys = morton::sort_references<Key>(refs, ex);
-        detail::build_nodes<W>(keys.data(), refs, cfg.max_leaf_size, wide, ex);
+        build_nodes<W>(keys.data(), refs, cfg.max_leaf_size, wide, ex);
     };
     if (cfg.morton_bits == 63) run(std::uint64_t{});
     else run(std::uint32_t{});
@@ -246,6 +245,28 @@ build(std::span<const Triangle<typename NodeT::scalar_type>> tris, const Config&
         ex.for_each(0, wide.prim_ids.size(), [&](std::size_t s) { wide.leaf_triangles[s] = tris[wide.prim_ids[s]]; });
     }
     return wide;
+}
+
+} // namespace detail
+
+/// Builds a W-wide BVH over `tris` straight from the sorted Morton codes (see the file comment).
+/// Triangles with NaN/infinite vertices are left out and counted in `excluded`. Throws
+/// std::invalid_argument for morton_bits other than 30 or 63 or a max_leaf_size outside 1..255,
+/// std::length_error beyond 2^31 - 1 triangles. O(n) passes plus the radix sort, parallel over `ex`.
+/// @tparam W 4 or 8, @tparam NodeT the binary node type whose scalar and index the wide node takes,
+/// @tparam Prim prim::indexed or prim::copied.
+template <int W = 8, class NodeT = Node<>, class Prim = prim::indexed, class Exec = exec::default_executor>
+WideBvh<WideNode<typename NodeT::scalar_type, typename NodeT::index_type, W>, Prim>
+build(std::span<const Triangle<typename NodeT::scalar_type>> tris, const Config& cfg = {}, const Exec& ex = {}) {
+    return detail::build<W, NodeT, Prim>(tris, cfg, ex);
+}
+
+/// The same over an indexed mesh read in place (mesh.hpp): the tree `build` gives over
+/// `make_triangles(vertices, indices)`, bit for bit, without that copy. NodeT defaults to Node<T>.
+template <int W = 8, class NodeT = void, class Prim = prim::indexed, class Exec = exec::default_executor, class T, class Index>
+WideBvh<WideNode<T, typename dynbvh::detail::node_for_t<NodeT, T>::index_type, W>, Prim>
+build(const MeshView<T, Index>& mesh, const Config& cfg = {}, const Exec& ex = {}) {
+    return detail::build<W, dynbvh::detail::node_for_t<NodeT, T>, Prim>(mesh, cfg, ex);
 }
 
 /// The same for a std::vector of triangles of any scalar: `dynbvh::morton_wide::build(tris)`.

@@ -35,8 +35,10 @@
 #include "detail/emit.hpp"
 #include "detail/emit_wide.hpp"
 #include "executor.hpp"
+#include "mesh.hpp"
 #include "detail/morton.hpp"
 #include "detail/references.hpp"
+#include "detail/triangle_source.hpp"
 #include "detail/scratch.hpp"
 
 namespace dynbvh::ploc {
@@ -260,15 +262,30 @@ BinaryTree build_tree(References<T>& refs, const Config& cfg, const Exec& ex) {
     return detail::Clustering<T>(refs, cfg.radius, ex).run(ex);
 }
 
+namespace detail {
+
+/// build_tree as a function object, for dynbvh::detail::build_over (detail/emit_wide.hpp).
+struct Topology {
+    template <class T, class Exec>
+    BinaryTree operator()(References<T>& refs, const Config& cfg, const Exec& ex) const { return dynbvh::ploc::build_tree(refs, cfg, ex); }
+};
+
+} // namespace detail
+
 /// Builds a PLOC BVH over `tris` in one call:
 /// `auto bvh = dynbvh::ploc::build(tris, {.radius = 5}, dynbvh::exec::omp{});`
 /// Triangles with non-finite vertices are left out (counted in Bvh::excluded). `tris` is not modified.
 template <class NodeT = Node<>, class Prim = prim::indexed, class Exec = exec::default_executor>
 Bvh<NodeT, Prim> build(std::span<const Triangle<typename NodeT::scalar_type>> tris, const Config& cfg = {},
                        const Exec& ex = {}) {
-    auto refs = make_references(tris, ex);
-    auto tree = build_tree(refs, cfg, ex);
-    return emit_bvh<NodeT, Prim>(tree, refs, tris, cfg.leaves, ex);
+    return dynbvh::detail::build_over<0, NodeT, Prim>(tris, cfg, detail::Topology{}, ex);
+}
+
+/// Builds a PLOC BVH over an indexed mesh read in place (mesh.hpp): the tree `build` gives over
+/// `make_triangles(vertices, indices)`, bit for bit, without that copy. NodeT defaults to Node<T>.
+template <class NodeT = void, class Prim = prim::indexed, class Exec = exec::default_executor, class T, class Index>
+Bvh<dynbvh::detail::node_for_t<NodeT, T>, Prim> build(const MeshView<T, Index>& mesh, const Config& cfg = {}, const Exec& ex = {}) {
+    return dynbvh::detail::build_over<0, dynbvh::detail::node_for_t<NodeT, T>, Prim>(mesh, cfg, detail::Topology{}, ex);
 }
 
 /// Builds a PLOC BVH straight into the W-wide layout (W = 4 or 8; detail/emit_wide.hpp): the tree
@@ -276,9 +293,14 @@ Bvh<NodeT, Prim> build(std::span<const Triangle<typename NodeT::scalar_type>> tr
 template <int W = 8, class NodeT = Node<>, class Prim = prim::indexed, class Exec = exec::default_executor>
 wide_bvh_of<Bvh<NodeT, Prim>, W> build_wide(std::span<const Triangle<typename NodeT::scalar_type>> tris,
                                             const Config& cfg = {}, const Exec& ex = {}) {
-    auto refs = make_references(tris, ex);
-    const auto tree = build_tree(refs, cfg, ex);
-    return emit_wide_bvh<W, NodeT, Prim>(tree, refs, tris, cfg.leaves, ex);
+    return dynbvh::detail::build_over<W, NodeT, Prim>(tris, cfg, detail::Topology{}, ex);
+}
+
+/// build_wide over an indexed mesh read in place (mesh.hpp); same tree as over make_triangles' array.
+template <int W = 8, class NodeT = void, class Prim = prim::indexed, class Exec = exec::default_executor, class T, class Index>
+wide_bvh_of<Bvh<dynbvh::detail::node_for_t<NodeT, T>, Prim>, W> build_wide(const MeshView<T, Index>& mesh, const Config& cfg = {},
+                                                                         const Exec& ex = {}) {
+    return dynbvh::detail::build_over<W, dynbvh::detail::node_for_t<NodeT, T>, Prim>(mesh, cfg, detail::Topology{}, ex);
 }
 
 /// The same for a std::vector of triangles of any scalar, the node type following the triangles:

@@ -343,12 +343,12 @@ std::vector<std::uint32_t> allocate(const std::vector<double>& prio, std::size_t
 /// 1 + s_t fragments, stored contiguously in input order; each fragment's `prim` is its triangle's.
 /// Fragment boxes are tight boxes of the clipped triangle, lie inside the reference's box, and together
 /// cover the whole triangle. primitive_count and excluded are copied; bounds are recomputed.
-/// `tris` is the user's triangle array that `refs.prim` indexes. beta = 0 returns `refs` unchanged.
+/// `tris` is the user's triangles (a span or a MeshView) that `refs.prim` indexes. beta = 0 returns `refs` unchanged.
 /// O(m + s_max) work (plus a bisection over the few candidates), parallel; the output does not
 /// depend on the executor. Throws std::invalid_argument for a bad beta and std::length_error
 /// when the fragments would exceed 2^31 - 1 references.
-template <class T, class Exec>
-References<T> split(const References<T>& refs, std::span<const Triangle<T>> tris, const Config& cfg, const Exec& ex) {
+template <class T, dynbvh::detail::triangle_source Source, class Exec>
+References<T> split(const References<T>& refs, Source tris, const Config& cfg, const Exec& ex) {
     const std::size_t m = refs.size();
     const std::size_t s_max = budget(m, cfg);
     if (s_max == 0) return refs;

@@ -16,18 +16,18 @@
 #include "detail/check_triangles.hpp"
 #include "detail/scratch.hpp"
 #include "executor.hpp"
+#include "mesh.hpp"
 #include "wide.hpp"
 
 namespace dynbvh {
 
-/// Recomputes all boxes of `bvh` from `tris` (same triangle count and indexing as at build time;
-/// a span whose size is not `bvh.primitive_count` throws std::invalid_argument, `bvh` unchanged).
-/// For prim::copied the leaf triangles are updated too. O(nodes + references): leaves in
-/// parallel, inner nodes in one reverse sweep (children always follow their parent in the layout).
-template <class NodeT, class Prim, class Exec = exec::default_executor>
-void refit(Bvh<NodeT, Prim>& bvh, std::span<const Triangle<typename NodeT::scalar_type>> tris, const Exec& ex = {}) {
+namespace detail {
+
+/// The binary refit over any triangle source (a span or a MeshView): one code path.
+template <class NodeT, class Prim, class Source, class Exec>
+void refit_binary(Bvh<NodeT, Prim>& bvh, Source tris, const Exec& ex) {
     using T = typename NodeT::scalar_type;
-    detail::check_triangles(bvh, tris.size(), "refit");
+    check_triangles(bvh, tris.size(), "refit");
     if (bvh.empty()) return;
     if constexpr (Bvh<NodeT, Prim>::precomputed)
         ex.for_each(0, bvh.prim_ids.size(), [&](std::size_t s) { bvh.leaf_triangles[s] = tris[bvh.prim_ids[s]]; });
@@ -44,8 +44,6 @@ void refit(Bvh<NodeT, Prim>& bvh, std::span<const Triangle<typename NodeT::scala
         node.set_bounds(merge(bvh.nodes[node.left()].bounds(), bvh.nodes[node.right()].bounds()));
     }
 }
-
-namespace detail {
 
 /// The wide refit's box passes over `bvh.nodes`: every leaf slot k of node i gets leaf_box(node, k),
 /// then inner slots bottom-up, each node finished by the last of its inner children (an atomic count
@@ -88,7 +86,39 @@ void refit_wide_boxes(WideTree& bvh, const LeafBox& leaf_box, const Exec& ex) {
     }, 1024);
 }
 
+/// The wide refit over any triangle source (see refit(WideBvh&, ...) below).
+template <class WNodeT, class Prim, class Source, class Exec>
+void refit_wide(WideBvh<WNodeT, Prim>& bvh, Source tris, const Exec& ex) {
+    static_assert(WideBvh<WNodeT, Prim>::block_lanes == 0, "dynbvh::refit: block trees refit through wide_blocks.hpp");
+    using T = typename WNodeT::scalar_type;
+    check_triangles(bvh, tris.size(), "refit");
+    if (bvh.empty()) return;
+    if constexpr (WideBvh<WNodeT, Prim>::precomputed)
+        ex.for_each(0, bvh.prim_ids.size(), [&](std::size_t s) { bvh.leaf_triangles[s] = tris[bvh.prim_ids[s]]; });
+    refit_wide_boxes(bvh, [&](const WNodeT& node, int k) {
+        AABB<T> box;
+        for (std::size_t s = node.child[k]; s < std::size_t(node.child[k]) + node.count[k]; ++s) box.extend(tris[bvh.prim_ids[s]].bounds());
+        return box;
+    }, ex);
+}
+
 } // namespace detail
+
+/// Recomputes all boxes of `bvh` from `tris` (same triangle count and indexing as at build time;
+/// a span whose size is not `bvh.primitive_count` throws std::invalid_argument, `bvh` unchanged).
+/// For prim::copied the leaf triangles are updated too. O(nodes + references): leaves in
+/// parallel, inner nodes in one reverse sweep (children always follow their parent in the layout).
+template <class NodeT, class Prim, class Exec = exec::default_executor>
+void refit(Bvh<NodeT, Prim>& bvh, std::span<const Triangle<typename NodeT::scalar_type>> tris, const Exec& ex = {}) {
+    detail::refit_binary(bvh, tris, ex);
+}
+
+/// The same from an indexed mesh read in place (mesh.hpp), typically the view the tree was built from
+/// after its vertices moved: the same boxes as from make_triangles' array, bit for bit. No allocation.
+template <class NodeT, class Prim, class Index, class Exec = exec::default_executor>
+void refit(Bvh<NodeT, Prim>& bvh, const MeshView<typename NodeT::scalar_type, Index>& mesh, const Exec& ex = {}) {
+    detail::refit_binary(bvh, mesh, ex);
+}
 
 /// Recomputes all boxes of the wide tree `bvh` from `tris` in place (same contract as the binary refit:
 /// a span whose size is not `bvh.primitive_count` throws std::invalid_argument, `bvh` unchanged; for
@@ -99,16 +129,14 @@ void refit_wide_boxes(WideTree& bvh, const LeafBox& leaf_box, const Exec& ex) {
 /// (wide_blocks.hpp) have their own overload, which reloads the blocks' vertices too.
 template <class WNodeT, class Prim, class Exec = exec::default_executor>
 void refit(WideBvh<WNodeT, Prim>& bvh, std::span<const Triangle<typename WNodeT::scalar_type>> tris, const Exec& ex = {}) {
-    using T = typename WNodeT::scalar_type;
-    detail::check_triangles(bvh, tris.size(), "refit");
-    if (bvh.empty()) return;
-    if constexpr (WideBvh<WNodeT, Prim>::precomputed)
-        ex.for_each(0, bvh.prim_ids.size(), [&](std::size_t s) { bvh.leaf_triangles[s] = tris[bvh.prim_ids[s]]; });
-    detail::refit_wide_boxes(bvh, [&](const WNodeT& node, int k) {
-        AABB<T> box;
-        for (std::size_t s = node.child[k]; s < std::size_t(node.child[k]) + node.count[k]; ++s) box.extend(tris[bvh.prim_ids[s]].bounds());
-        return box;
-    }, ex);
+    detail::refit_wide(bvh, tris, ex);
+}
+
+/// The wide refit from an indexed mesh read in place (mesh.hpp); the same boxes as from make_triangles'
+/// array, bit for bit.
+template <class WNodeT, class Prim, class Index, class Exec = exec::default_executor>
+void refit(WideBvh<WNodeT, Prim>& bvh, const MeshView<typename WNodeT::scalar_type, Index>& mesh, const Exec& ex = {}) {
+    detail::refit_wide(bvh, mesh, ex);
 }
 
 } // namespace dynbvh

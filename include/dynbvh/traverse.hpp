@@ -36,7 +36,9 @@
 
 #include "bvh.hpp"
 #include "detail/check_triangles.hpp"
+#include "detail/triangle_source.hpp"
 #include "intersect.hpp"
+#include "mesh.hpp"
 
 namespace dynbvh {
 
@@ -63,12 +65,13 @@ struct StackEntry {
     T tentry;  ///< entry distance of the node's box, to skip it once a closer hit is known
 };
 
-/// Tests the triangles of leaf slots [first, end) (slot i is triangle ids[i], or leaf_tris[i] for
-/// prim::copied trees). Each hit that replaces the closest so far (replaces_hit) narrows tmax and
-/// tbox = tmax * t_scale (the box tests' units) and is kept in `hit` and `best_prim`; with AnyHit the
-/// first hit sets hit.prim and returns true (stop). Shared by the binary and the wide traversal.
-template <class Tri, bool AnyHit, bool Precomputed, class T, class Index>
-DYNBVH_ALWAYS_INLINE bool test_leaf(const typename Tri::template prepared<T>& pt, const Triangle<T>* leaf_tris,
+/// Tests the triangles of leaf slots [first, end) (slot i is triangle leaf_tris[ids[i]], or leaf_tris[i]
+/// for prim::copied trees; leaf_tris is what leaf_triangles_of gives: a pointer, or a MeshView). Each
+/// hit that replaces the closest so far (replaces_hit) narrows tmax and tbox = tmax * t_scale (the box
+/// tests' units) and is kept in `hit` and `best_prim`; with AnyHit the first hit sets hit.prim and
+/// returns true (stop). Shared by the binary and the wide traversal (wide.hpp).
+template <class Tri, bool AnyHit, bool Precomputed, class T, class Index, class LeafTris>
+DYNBVH_ALWAYS_INLINE bool test_leaf(const typename Tri::template prepared<T>& pt, const LeafTris leaf_tris,
                                     const Index* ids, std::size_t first, std::size_t end, T t_scale, T& tmax, T& tbox,
                                     std::uint32_t& best_prim, Hit<T>& hit) {
     for (std::size_t slot = first; slot < end; ++slot) {
@@ -130,8 +133,8 @@ DYNBVH_ALWAYS_INLINE Hit<T> run_with_stack(bool fits, std::size_t heap_entries, 
 /// selects). `AnyHit` stops at the first hit. Returns false when the stack of `cap` entries would
 /// overflow (only possible for a tree whose `depth` field understates its depth); `hit` is then
 /// meaningless and the caller retries with a stack that cannot overflow.
-template <class Policy, bool AnyHit, int Oct, class NodeT, class Prim>
-bool traverse_octant(const Bvh<NodeT, Prim>& bvh, std::span<const Triangle<typename NodeT::scalar_type>> tris,
+template <class Policy, bool AnyHit, int Oct, class NodeT, class Prim, class Source>
+bool traverse_octant(const Bvh<NodeT, Prim>& bvh, const Source tris,
                      // by value: local copies the compiler can keep in registers (stores to the stack
                      // could alias a reference)
                      const typename Policy::box_test::template prepared<typename NodeT::scalar_type> pb,
@@ -145,7 +148,7 @@ bool traverse_octant(const Bvh<NodeT, Prim>& bvh, std::span<const Triangle<typen
 
     const NodeT* const nodes = bvh.nodes.data();
     const Index* const ids = bvh.prim_ids.data();
-    const Triangle<T>* const leaf_tris = Bvh<NodeT, Prim>::precomputed ? bvh.leaf_triangles.data() : tris.data();
+    const auto leaf_tris = leaf_triangles_of(bvh, tris);
 
     std::size_t sp = 0;
     std::uint32_t best_prim = invalid_prim;
@@ -186,10 +189,8 @@ bool traverse_octant(const Bvh<NodeT, Prim>& bvh, std::span<const Triangle<typen
     }
 }
 
-template <class Policy, bool AnyHit, class NodeT, class Prim>
-Hit<typename NodeT::scalar_type> traverse(const Bvh<NodeT, Prim>& bvh,
-                                          std::span<const Triangle<typename NodeT::scalar_type>> tris,
-                                          const Ray<typename NodeT::scalar_type>& ray) {
+template <class Policy, bool AnyHit, class NodeT, class Prim, class Source>
+Hit<typename NodeT::scalar_type> traverse(const Bvh<NodeT, Prim>& bvh, const Source tris, const Ray<typename NodeT::scalar_type>& ray) {
     using T = typename NodeT::scalar_type;
     using Index = typename NodeT::index_type;
     using Box = typename Policy::box_test;
@@ -227,12 +228,29 @@ Hit<typename NodeT::scalar_type> intersect(const Bvh<NodeT, Prim>& bvh,
     return detail::traverse<Policy, false>(bvh, tris, ray);
 }
 
+/// Closest hit over an indexed mesh read in place (mesh.hpp), the tree built over it (or over
+/// make_triangles' array of it): the same hit as intersect over that array, bit for bit.
+template <class Policy = trace::robust, class NodeT, class Prim, class Index>
+Hit<typename NodeT::scalar_type> intersect(const Bvh<NodeT, Prim>& bvh, const MeshView<typename NodeT::scalar_type, Index>& mesh,
+                                           const Ray<typename NodeT::scalar_type>& ray) {
+    detail::check_triangles(bvh, mesh.size(), "intersect", !Bvh<NodeT, Prim>::precomputed);
+    return detail::traverse<Policy, false>(bvh, mesh, ray);
+}
+
 /// Whether anything blocks `ray` within [ray.tmin, ray.tmax] (shadow rays): stops at the first hit.
 template <class Policy = trace::robust, class NodeT, class Prim>
 bool occluded(const Bvh<NodeT, Prim>& bvh, std::span<const Triangle<typename NodeT::scalar_type>> tris,
               const Ray<typename NodeT::scalar_type>& ray) {
     detail::check_triangles(bvh, tris.size(), "occluded", !Bvh<NodeT, Prim>::precomputed);
     return static_cast<bool>(detail::traverse<Policy, true>(bvh, tris, ray));
+}
+
+/// Any hit over an indexed mesh read in place (mesh.hpp); the same answer as occluded over make_triangles' array.
+template <class Policy = trace::robust, class NodeT, class Prim, class Index>
+bool occluded(const Bvh<NodeT, Prim>& bvh, const MeshView<typename NodeT::scalar_type, Index>& mesh,
+              const Ray<typename NodeT::scalar_type>& ray) {
+    detail::check_triangles(bvh, mesh.size(), "occluded", !Bvh<NodeT, Prim>::precomputed);
+    return static_cast<bool>(detail::traverse<Policy, true>(bvh, mesh, ray));
 }
 
 /// Reference closest hit: every finite triangle is tested with `Policy`'s triangle test (O(n) per ray).

@@ -183,8 +183,8 @@ struct WideStackEntry {
 #pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
 #endif
 template <class Policy, bool AnyHit, int Oct, class WN, class P, class S = typename WN::scalar_type,
-          class I = typename WN::index_type, int W = WN::width>
-bool wide_traverse_octant(const WideBvh<WN, P>& bvh, std::span<const Triangle<S>> tris, const Ray<S>& ray,
+          class I = typename WN::index_type, int W = WN::width, class Source>
+bool wide_traverse_octant(const WideBvh<WN, P>& bvh, const Source tris, const Ray<S>& ray,
                           const S t_scale,
                           const WideBoxTest<typename Policy::box_test, S, W> wb, Hit<S>& hit,
                           WideStackEntry<I, S>* const stack, const std::size_t cap, const I start, const I start_count,
@@ -196,7 +196,7 @@ bool wide_traverse_octant(const WideBvh<WN, P>& bvh, std::span<const Triangle<S>
 
     const WN* const nodes = bvh.nodes.data();
     const I* const ids = bvh.prim_ids.data();
-    const Triangle<S>* const leaf_tris = WB::precomputed ? bvh.leaf_triangles.data() : tris.data();
+    const auto leaf_tris = leaf_triangles_of(bvh, tris);
     constexpr int BL = WB::block_lanes;   // > 0: leaves are triangle blocks (wide_blocks.hpp)
     // The triangle test's setup, made at the first leaf. (Not std::optional: GCC zero-fills its storage
     // with `rep stos` on every ray, a tenth of a primary ray's cost when most rays reach no leaf.)
@@ -282,8 +282,8 @@ bool wide_traverse_octant(const WideBvh<WN, P>& bvh, std::span<const Triangle<S>
 
 /// Stack and octant dispatch around wide_traverse_octant for a prepared ray.
 template <class Policy, bool AnyHit, class WN, class P, class S = typename WN::scalar_type, class I = typename WN::index_type,
-          int W = WN::width>
-Hit<S> wide_run(const WideBvh<WN, P>& bvh, std::span<const Triangle<S>> tris, const Ray<S>& ray,
+          int W = WN::width, class Source>
+Hit<S> wide_run(const WideBvh<WN, P>& bvh, const Source tris, const Ray<S>& ray,
                 const WideBoxTest<typename Policy::box_test, S, W>& wb, S t_scale, int octant) {
     using Entry = WideStackEntry<I, S>;
     auto run = [&](Entry* stack, std::size_t cap, Hit<S>& hit) {
@@ -299,8 +299,8 @@ Hit<S> wide_run(const WideBvh<WN, P>& bvh, std::span<const Triangle<S>> tris, co
 }
 
 template <class Policy, bool AnyHit, class WN, class P, class S = typename WN::scalar_type, class I = typename WN::index_type,
-          int W = WN::width>
-Hit<S> wide_traverse(const WideBvh<WN, P>& bvh, std::span<const Triangle<S>> tris, const Ray<S>& ray) {
+          int W = WN::width, class Source>
+Hit<S> wide_traverse(const WideBvh<WN, P>& bvh, const Source tris, const Ray<S>& ray) {
     using Box = typename Policy::box_test;
     if (bvh.nodes.empty()) return {};
 #if defined(DYNBVH_SSE)
@@ -325,6 +325,23 @@ Hit<S> intersect(const WideBvh<WN, P>& bvh, std::type_identity_t<std::span<const
                  const std::type_identity_t<Ray<S>>& ray) {
     detail::check_triangles(bvh, tris.size(), "intersect", !WideBvh<WN, P>::precomputed);
     return detail::wide_traverse<Policy, false>(bvh, tris, ray);
+}
+
+/// Closest hit in a wide BVH over an indexed mesh read in place (mesh.hpp); same answer as over
+/// make_triangles' array, bit for bit.
+template <class Policy = trace::robust, class WN, class P, class Index, class S = typename WN::scalar_type>
+Hit<S> intersect(const WideBvh<WN, P>& bvh, const MeshView<std::type_identity_t<S>, Index>& mesh,
+                 const std::type_identity_t<Ray<S>>& ray) {
+    detail::check_triangles(bvh, mesh.size(), "intersect", !WideBvh<WN, P>::precomputed);
+    return detail::wide_traverse<Policy, false>(bvh, mesh, ray);
+}
+
+/// Any hit in a wide BVH over an indexed mesh read in place (mesh.hpp).
+template <class Policy = trace::robust, class WN, class P, class Index, class S = typename WN::scalar_type>
+bool occluded(const WideBvh<WN, P>& bvh, const MeshView<std::type_identity_t<S>, Index>& mesh,
+              const std::type_identity_t<Ray<S>>& ray) {
+    detail::check_triangles(bvh, mesh.size(), "occluded", !WideBvh<WN, P>::precomputed);
+    return static_cast<bool>(detail::wide_traverse<Policy, true>(bvh, mesh, ray));
 }
 
 /// Any hit in a wide BVH; same contract as occluded(Bvh, ...) in traverse.hpp.

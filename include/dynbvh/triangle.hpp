@@ -12,8 +12,8 @@
 
 namespace dynbvh {
 
-/// A triangle by its three vertices (36 bytes for float). Users holding indexed
-/// meshes flatten them with `make_triangles` once per frame.
+/// A triangle by its three vertices (36 bytes for float). Users holding indexed meshes pass a
+/// MeshView (mesh.hpp), read in place, or flatten them with `make_triangles`.
 template <class T>
 struct Triangle {
     /// @{

@@ -49,6 +49,7 @@
 #include "detail/check_triangles.hpp"
 #include "detail/triangle_block.hpp"
 #include "executor.hpp"
+#include "mesh.hpp"
 #include "refit.hpp"
 #include "wide.hpp"
 
@@ -127,15 +128,68 @@ void pack_wide_leaves(WideTree& w, std::span<const Index> prim_ids, const TriOf&
     });
 }
 
-/// pack_wide_leaves over a tree's leaf part `src` (prim::indexed: the user's triangles `tris`;
-/// prim::copied: its own leaf triangles).
-template <class WideTree, class Src, class Exec>
-void pack_from(WideTree& w, const Src& src, std::span<const Triangle<float>> tris, const Exec& ex) {
+/// pack_wide_leaves over a tree's leaf part `src` (prim::indexed: the user's triangles `tris`, a span or
+/// a MeshView; prim::copied: its own leaf triangles).
+template <class WideTree, class Src, class Source, class Exec>
+void pack_from(WideTree& w, const Src& src, Source tris, const Exec& ex) {
     using Index = typename WideTree::index_type;
     if constexpr (Src::precomputed)
         pack_wide_leaves(w, std::span<const Index>(src.prim_ids), [&](std::size_t s) -> const Triangle<float>& { return src.leaf_triangles[s]; }, ex);
     else
-        pack_wide_leaves(w, std::span<const Index>(src.prim_ids), [&](std::size_t s) -> const Triangle<float>& { return tris[src.prim_ids[s]]; }, ex);
+        pack_wide_leaves(w, std::span<const Index>(src.prim_ids), [&](std::size_t s) -> decltype(auto) { return tris[src.prim_ids[s]]; }, ex);
+}
+
+/// make_wide_blocks of a binary tree over any triangle source (a span or a MeshView): one code path.
+template <int W, int L, class NodeT, class Prim, class Source, class Exec>
+wide_blocks_bvh_of<Bvh<NodeT, Prim>, W, L> blocks_of_binary(const Bvh<NodeT, Prim>& bvh, Source tris, const Exec& ex) {
+    static_assert(std::is_same_v<typename NodeT::scalar_type, float>, "dynbvh::make_wide_blocks: triangle blocks are float");
+    check_triangles(bvh, tris.size(), "make_wide_blocks", !Bvh<NodeT, Prim>::precomputed);
+    wide_blocks_bvh_of<Bvh<NodeT, Prim>, W, L> w;
+    {
+        wide_bvh_of<Bvh<NodeT, Prim>, W> topology;   // the nodes of make_wide<W>
+        collapse_to_wide<W>(bvh, topology, ex);
+        w.nodes = std::move(topology.nodes);
+        w.depth = topology.depth;
+    }
+    w.primitive_count = bvh.primitive_count;
+    w.excluded = bvh.excluded;
+    if (!w.nodes.empty()) pack_from(w, bvh, tris, ex);
+    return w;
+}
+
+/// make_wide_blocks of a wide tree over any triangle source: one code path.
+template <int L, class WN, class Prim, class Source, class Exec>
+WideBvh<WN, prim::blocks<(L == 0 ? WN::width : L)>> blocks_of_wide(WideBvh<WN, Prim>&& wide, Source tris, const Exec& ex) {
+    static_assert(std::is_same_v<typename WN::scalar_type, float>, "dynbvh::make_wide_blocks: triangle blocks are float");
+    static_assert(!requires { Prim::lanes; }, "dynbvh::make_wide_blocks: the tree already has block leaves");
+    check_triangles(wide, tris.size(), "make_wide_blocks", !WideBvh<WN, Prim>::precomputed);
+    WideBvh<WN, prim::blocks<(L == 0 ? WN::width : L)>> w;
+    w.nodes = std::move(wide.nodes);
+    w.depth = wide.depth;
+    w.primitive_count = wide.primitive_count;
+    w.excluded = wide.excluded;
+    if (!w.nodes.empty()) pack_from(w, wide, tris, ex);
+    return w;
+}
+
+/// The block tree refit over any triangle source: one code path.
+template <class WN, int L, class Source, class Exec>
+void refit_blocks(WideBvh<WN, prim::blocks<L>>& bvh, Source tris, const Exec& ex) {
+    check_triangles(bvh, tris.size(), "refit");
+    if (bvh.empty()) return;
+    ex.for_each(0, bvh.blocks.size(), [&](std::size_t i) {
+        TriangleBlock<L>& b = bvh.blocks[i];
+        for (int k = 0; k < int(b.count); ++k) b.set(k, tris[b.prim[k]], b.prim[k]);
+    }, 1024);
+    refit_wide_boxes(bvh, [&](const WN& node, int k) {
+        AABB<float> box;
+        std::size_t left = node.count[k];
+        for (const TriangleBlock<L>* b = bvh.blocks.data() + node.child[k]; left != 0; ++b) {
+            for (int j = 0; j < int(b->count); ++j) box.extend(b->triangle(j).bounds());
+            left -= std::min<std::size_t>(left, b->count);
+        }
+        return box;
+    }, ex);
 }
 
 } // namespace detail
@@ -147,19 +201,16 @@ template <int W = 8, int L = W, class NodeT, class Prim, class Exec = exec::defa
 wide_blocks_bvh_of<Bvh<NodeT, Prim>, W, L> make_wide_blocks(const Bvh<NodeT, Prim>& bvh,
                                                             std::span<const Triangle<typename NodeT::scalar_type>> tris,
                                                             const Exec& ex = {}) {
-    static_assert(std::is_same_v<typename NodeT::scalar_type, float>, "dynbvh::make_wide_blocks: triangle blocks are float");
-    detail::check_triangles(bvh, tris.size(), "make_wide_blocks", !Bvh<NodeT, Prim>::precomputed);
-    wide_blocks_bvh_of<Bvh<NodeT, Prim>, W, L> w;
-    {
-        wide_bvh_of<Bvh<NodeT, Prim>, W> topology;   // the nodes of make_wide<W>
-        detail::collapse_to_wide<W>(bvh, topology, ex);
-        w.nodes = std::move(topology.nodes);
-        w.depth = topology.depth;
-    }
-    w.primitive_count = bvh.primitive_count;
-    w.excluded = bvh.excluded;
-    if (!w.nodes.empty()) detail::pack_from(w, bvh, tris, ex);
-    return w;
+    return detail::blocks_of_binary<W, L>(bvh, tris, ex);
+}
+
+/// The same from an indexed mesh read in place (mesh.hpp): the same tree as from make_triangles' array,
+/// bit for bit.
+template <int W = 8, int L = W, class NodeT, class Prim, class Index, class Exec = exec::default_executor>
+wide_blocks_bvh_of<Bvh<NodeT, Prim>, W, L> make_wide_blocks(const Bvh<NodeT, Prim>& bvh,
+                                                            const MeshView<typename NodeT::scalar_type, Index>& mesh,
+                                                            const Exec& ex = {}) {
+    return detail::blocks_of_binary<W, L>(bvh, mesh, ex);
 }
 
 /// Packs the leaves of a float wide tree (prim::indexed or prim::copied; e.g. straight from a builder's
@@ -171,16 +222,15 @@ template <int L = 0, class WN, class Prim, class Exec = exec::default_executor>
 WideBvh<WN, prim::blocks<(L == 0 ? WN::width : L)>> make_wide_blocks(WideBvh<WN, Prim> wide,
                                                                       std::span<const Triangle<typename WN::scalar_type>> tris,
                                                                       const Exec& ex = {}) {
-    static_assert(std::is_same_v<typename WN::scalar_type, float>, "dynbvh::make_wide_blocks: triangle blocks are float");
-    static_assert(!requires { Prim::lanes; }, "dynbvh::make_wide_blocks: the tree already has block leaves");
-    detail::check_triangles(wide, tris.size(), "make_wide_blocks", !WideBvh<WN, Prim>::precomputed);
-    WideBvh<WN, prim::blocks<(L == 0 ? WN::width : L)>> w;
-    w.nodes = std::move(wide.nodes);
-    w.depth = wide.depth;
-    w.primitive_count = wide.primitive_count;
-    w.excluded = wide.excluded;
-    if (!w.nodes.empty()) detail::pack_from(w, wide, tris, ex);
-    return w;
+    return detail::blocks_of_wide<L>(std::move(wide), tris, ex);
+}
+
+/// The same from an indexed mesh read in place (mesh.hpp): the same tree as from make_triangles' array.
+template <int L = 0, class WN, class Prim, class Index, class Exec = exec::default_executor>
+WideBvh<WN, prim::blocks<(L == 0 ? WN::width : L)>> make_wide_blocks(WideBvh<WN, Prim> wide,
+                                                                      const MeshView<typename WN::scalar_type, Index>& mesh,
+                                                                      const Exec& ex = {}) {
+    return detail::blocks_of_wide<L>(std::move(wide), mesh, ex);
 }
 
 /// Refits a block tree in place: every block lane reloads its triangle from `tris` (by the user index
@@ -190,21 +240,14 @@ WideBvh<WN, prim::blocks<(L == 0 ? WN::width : L)>> make_wide_blocks(WideBvh<WN,
 /// tree it was packed from, bit for bit (boxes, blocks, hits). O(nodes + references), parallel.
 template <class WN, int L, class Exec = exec::default_executor>
 void refit(WideBvh<WN, prim::blocks<L>>& bvh, std::span<const Triangle<float>> tris, const Exec& ex = {}) {
-    detail::check_triangles(bvh, tris.size(), "refit");
-    if (bvh.empty()) return;
-    ex.for_each(0, bvh.blocks.size(), [&](std::size_t i) {
-        detail::TriangleBlock<L>& b = bvh.blocks[i];
-        for (int k = 0; k < int(b.count); ++k) b.set(k, tris[b.prim[k]], b.prim[k]);
-    }, 1024);
-    detail::refit_wide_boxes(bvh, [&](const WN& node, int k) {
-        AABB<float> box;
-        std::size_t left = node.count[k];
-        for (const detail::TriangleBlock<L>* b = bvh.blocks.data() + node.child[k]; left != 0; ++b) {
-            for (int j = 0; j < int(b->count); ++j) box.extend(b->triangle(j).bounds());
-            left -= std::min<std::size_t>(left, b->count);
-        }
-        return box;
-    }, ex);
+    detail::refit_blocks(bvh, tris, ex);
+}
+
+/// The same from an indexed mesh read in place (mesh.hpp); the same blocks and boxes as from
+/// make_triangles' array, bit for bit.
+template <class WN, int L, class Index, class Exec = exec::default_executor>
+void refit(WideBvh<WN, prim::blocks<L>>& bvh, const MeshView<float, Index>& mesh, const Exec& ex = {}) {
+    detail::refit_blocks(bvh, mesh, ex);
 }
 
 } // namespace dynbvh

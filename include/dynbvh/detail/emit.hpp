@@ -321,8 +321,8 @@ void compute_node_info(const BinaryTree& tree, const References<T>& refs, const 
 
 /// emit_bvh's top-down half: writes the final layout from the facts of every inner node
 /// (computed by compute_node_info or by the builder itself). O(n), parallel.
-template <class NodeT, class Prim, class T, class Exec>
-Bvh<NodeT, Prim> emit_from_info(const BinaryTree& tree, const References<T>& refs, std::span<const Triangle<T>> tris,
+template <class NodeT, class Prim, class T, triangle_source Source, class Exec>
+Bvh<NodeT, Prim> emit_from_info(const BinaryTree& tree, const References<T>& refs, Source tris,
                                 std::span<const RawNodeInfo<T>> info, const Exec& ex) {
     Bvh<NodeT, Prim> bvh;
     bvh.primitive_count = refs.primitive_count;
@@ -371,9 +371,9 @@ Bvh<NodeT, Prim> emit_from_info(const BinaryTree& tree, const References<T>& ref
 } // namespace detail
 
 /// Turns a raw tree over `refs` into the final layout (see the file comment).
-/// For prim::copied the leaf triangles are copied from `tris`. O(n) work, parallel.
-template <class NodeT, class Prim, class T, class Exec>
-Bvh<NodeT, Prim> emit_bvh(const BinaryTree& tree, const References<T>& refs, std::span<const Triangle<T>> tris,
+/// For prim::copied the leaf triangles are copied from `tris` (a span or a MeshView). O(n) work, parallel.
+template <class NodeT, class Prim, class T, detail::triangle_source Source, class Exec>
+Bvh<NodeT, Prim> emit_bvh(const BinaryTree& tree, const References<T>& refs, Source tris,
                           const LeafConfig& cfg, const Exec& ex) {
     scratch_vector<detail::RawNodeInfo<T>> info(refs.size() == 0 ? 0 : tree.inner_count());
     if (refs.size() != 0) detail::compute_node_info(tree, refs, cfg, std::span<detail::RawNodeInfo<T>>(info), ex);

@@ -177,9 +177,8 @@ void compact_wide_references(WideBvh<WNodeT, Prim>& bvh) {
 
 /// emit_wide_bvh's top-down pass from the facts of every inner node (computed by compute_node_info or
 /// by the builder itself, as LBVH does). See the file comment. O(n), parallel.
-template <int W, class NodeT, class Prim, class T, class Exec>
-wide_bvh_of<Bvh<NodeT, Prim>, W> emit_wide_from_info(const BinaryTree& tree, const References<T>& refs,
-                                                     std::span<const Triangle<T>> tris,
+template <int W, class NodeT, class Prim, class T, triangle_source Source, class Exec>
+wide_bvh_of<Bvh<NodeT, Prim>, W> emit_wide_from_info(const BinaryTree& tree, const References<T>& refs, Source tris,
                                                      std::span<const RawNodeInfo<T>> info, const Exec& ex) {
     using Index = typename NodeT::index_type;
     using Result = wide_bvh_of<Bvh<NodeT, Prim>, W>;
@@ -275,12 +274,27 @@ wide_bvh_of<Bvh<NodeT, Prim>, W> emit_wide_from_info(const BinaryTree& tree, con
 /// `make_wide<W>(emit_bvh<NodeT, Prim>(tree, refs, tris, cfg, ex), ex)` gives, bit for bit, without
 /// the binary nodes (see detail/emit_wide.hpp). For prim::copied the leaf triangles are copied from
 /// `tris`. O(n) work, parallel.
-template <int W, class NodeT, class Prim, class T, class Exec>
-wide_bvh_of<Bvh<NodeT, Prim>, W> emit_wide_bvh(const BinaryTree& tree, const References<T>& refs,
-                                               std::span<const Triangle<T>> tris, const LeafConfig& cfg, const Exec& ex) {
+template <int W, class NodeT, class Prim, class T, detail::triangle_source Source, class Exec>
+wide_bvh_of<Bvh<NodeT, Prim>, W> emit_wide_bvh(const BinaryTree& tree, const References<T>& refs, Source tris,
+                                               const LeafConfig& cfg, const Exec& ex) {
     scratch_vector<detail::RawNodeInfo<T>> info(refs.size() == 0 ? 0 : tree.inner_count());
     if (refs.size() != 0) detail::compute_node_info(tree, refs, cfg, std::span<detail::RawNodeInfo<T>>(info), ex);
     return detail::emit_wide_from_info<W, NodeT, Prim>(tree, refs, tris, std::span<const detail::RawNodeInfo<T>>(info), ex);
 }
+
+namespace detail {
+
+/// The whole build of a builder whose topology step sees references alone (PLOC, binned SAH): the
+/// references of `tris` (any triangle source: a span or a MeshView), `topology(refs, cfg, ex)`, then
+/// emission with cfg.leaves, binary when W == 0, else W-wide. One code path for every input.
+template <int W, class NodeT, class Prim, class Source, class Config, class Topology, class Exec>
+auto build_over(Source tris, const Config& cfg, Topology topology, const Exec& ex) {
+    auto refs = make_references(tris, ex);
+    const BinaryTree tree = topology(refs, cfg, ex);
+    if constexpr (W == 0) return emit_bvh<NodeT, Prim>(tree, refs, tris, cfg.leaves, ex);
+    else return emit_wide_bvh<W, NodeT, Prim>(tree, refs, tris, cfg.leaves, ex);
+}
+
+} // namespace detail
 
 } // namespace dynbvh

@@ -14,6 +14,7 @@
 
 #include "../executor.hpp"
 #include "scratch.hpp"
+#include "triangle_source.hpp"
 #include "../triangle.hpp"
 
 namespace dynbvh {
@@ -59,10 +60,12 @@ void update_reference_bounds(References<T>& refs, const Exec& ex) {
     refs.centroid_bounds = r.centroid;
 }
 
-/// One reference per finite triangle, in input order. O(n), parallel; one pass over the
-/// triangles when all are finite (the common case), a second compacting pass otherwise.
-template <class T, class Exec>
-References<T> make_references(std::span<const Triangle<T>> tris, const Exec& ex) {
+/// One reference per finite triangle of `tris` (a std::span<const Triangle<T>> or a MeshView, see
+/// detail/triangle_source.hpp), in input order. O(n), parallel; one pass over the triangles when all
+/// are finite (the common case), a second compacting pass otherwise.
+template <detail::triangle_source Source, class Exec>
+References<detail::source_scalar_t<Source>> make_references(Source tris, const Exec& ex) {
+    using T = detail::source_scalar_t<Source>;
     struct Acc {
         Vec3<T> lo, hi, clo, chi;   // bounds and centroid bounds, as corners (kept in registers)
         std::size_t bad;
@@ -84,7 +87,7 @@ References<T> make_references(std::span<const Triangle<T>> tris, const Exec& ex)
         AABB<T>* box = refs.box.data();
         std::uint32_t* prim = refs.prim.data();
         for (std::size_t i = std::min(n, k * chunk), e = std::min(n, i + chunk); i < e; ++i) {
-            const Triangle<T>& t = tris[i];
+            const Triangle<T>& t = tris[i];   // (a view's triangle by value, bound here)
             const Vec3<T> lo = dynbvh::min(dynbvh::min(t.p0, t.p1), t.p2);
             const Vec3<T> hi = dynbvh::max(dynbvh::max(t.p0, t.p1), t.p2);
             box[i] = {lo, hi};

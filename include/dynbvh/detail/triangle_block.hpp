@@ -137,7 +137,9 @@ void pack_triangle_blocks(std::span<const LeafRange> leaves, std::span<const Ind
 #if defined(__GNUC__)
                 // The triangles are gathered in leaf order, scattered in memory: fetch a few leaves ahead
                 // (leaves mostly follow one another in prim_ids).
-                if (slot + prefetch_distance < slots) __builtin_prefetch(&tri_of(slot + prefetch_distance));
+                // (a MeshView's triangles are made on the fly: nothing to prefetch there)
+                if constexpr (std::is_lvalue_reference_v<decltype(tri_of(slot))>)
+                    if (slot + prefetch_distance < slots) __builtin_prefetch(&tri_of(slot + prefetch_distance));
 #endif
                 b->set(int(k), tri_of(slot), static_cast<std::uint32_t>(prim_ids[slot]));
             }
