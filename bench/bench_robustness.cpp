@@ -215,7 +215,7 @@ void BM_triangle_block(benchmark::State& state) {
     std::vector<std::uint32_t> ids(leaf_order.size());
     for (std::size_t k = 0; k < ids.size(); ++k) ids[k] = std::uint32_t(k);
     scratch_vector<detail::TriangleBlock<L>> blocks;
-    std::vector<std::size_t> first;
+    scratch_vector<std::size_t> first;
     detail::pack_triangle_blocks<L>(std::span<const detail::LeafRange>(runs), std::span<const std::uint32_t>(ids),
                                     [&](std::size_t slot) -> const Trianglef& { return leaf_order[slot]; }, blocks, first);
     std::size_t n = 0, hit = 0;

@@ -147,7 +147,7 @@ void poison(Scene& s, Rng& rng) {
 template <int L>
 struct Packed {
     scratch_vector<detail::TriangleBlock<L>> blocks;
-    std::vector<std::size_t> first;
+    scratch_vector<std::size_t> first;
 };
 
 template <int L, class Exec = exec::serial>

@@ -2,6 +2,10 @@
 // policies and every executor.
 #include "dyn_accel.hpp"
 
+#include <type_traits>
+
+#include <dynbvh/packet.hpp>
+
 namespace dynbvh::study::accel_impl {
 
 namespace {
@@ -33,6 +37,22 @@ void Trees<Prim>::trace(const BuilderSpec& spec, const Backend& backend, std::sp
                         std::span<std::uint32_t> out) const {
     with_policy(spec, [&]<class Policy>() {
         with_tree(spec, *this, [&](const auto& tree) {
+            using Tree = std::remove_cvref_t<decltype(tree)>;
+            if constexpr (requires { Tree::width; }) {   // wide trees: packets of 16 (packet.hpp) unless --rays single
+                if (spec.packets) {
+                    trace_tiles_packets<16>(backend, gen, out, [&](const Rayf* rays, const int* valid, std::uint32_t* prims) {
+                        RayPacket<float, 16> p;
+                        std::uint32_t active = 0;
+                        for (int k = 0; k < 16; ++k) {
+                            p.set(k, rays[k]);
+                            active |= valid[k] ? std::uint32_t(1) << k : 0u;
+                        }
+                        const HitPacket<float, 16> h = dynbvh::intersect<Policy>(tree, tris, p, active);
+                        for (int k = 0; k < 16; ++k) prims[k] = h.prim[k];
+                    });
+                    return;
+                }
+            }
             trace_tiles(backend, gen, out, [&](const Rayf& r) { return dynbvh::intersect<Policy>(tree, tris, r).prim; });
         });
     });

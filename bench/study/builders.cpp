@@ -265,11 +265,19 @@ public:
         : bvh_(backend.threads(), spec.kind == Kind::embree_low      ? bench::EmbreeMode::low
                                   : spec.kind == Kind::embree_medium ? bench::EmbreeMode::medium
                                                                      : bench::EmbreeMode::refit),
-          backend_(backend) {}
+          backend_(backend), packets_(spec.packets) {}
     void prepare(std::span<const Trianglef> tris) override { bvh_.update(tris); }
     void build(std::span<const Trianglef>) override { bvh_.commit(); }
     void trace(std::span<const Trianglef>, const RayGen& gen, std::span<std::uint32_t> out) override {
         const bench::EmbreeBvh& bvh = bvh_;
+        if (packets_) {   // rtcIntersect16 on 4x4 pixels
+            trace_tiles_packets<16>(backend_, gen, out, [&](const Rayf* rays, const int* valid, std::uint32_t* prims) {
+                Hitf h[16];
+                bvh.intersect_packet<16>(rays, valid, h);
+                for (int k = 0; k < 16; ++k) prims[k] = h[k].prim;
+            });
+            return;
+        }
         trace_tiles(backend_, gen, out, [&](const Rayf& r) { return bvh.intersect(r).prim; });
     }
     std::optional<double> sah() const override { return std::nullopt; }
@@ -280,6 +288,7 @@ public:
 private:
     bench::EmbreeBvh bvh_;
     const Backend& backend_;
+    bool packets_;
 };
 #endif
 

@@ -78,7 +78,7 @@ threads), report.md with SVG plots and PNG renders; tables like the thesis's Tab
 
 /// The values as typed, where they need more than CLI11's conversion (lists, presets, cross checks).
 struct Raw {
-    std::string scenes, builders, res, sweep_scenes, backend, effects, out;
+    std::string scenes, builders, res, sweep_scenes, backend, effects, out, rays;
     bool no_warmup = false;
 };
 
@@ -132,6 +132,10 @@ void define(CLI::App& app, Options& o, Raw& raw) {
                    "rays from specular or transparent materials, refraction rays from transparent ones) and report rays and "
                    "trace time per effect; the PNG renders then show those effects"))
         ->type_name("E");
+    app.add_option("--rays", raw.rays,
+                   wrap("packet (default): primary rays traced in packets of 16 (4x4 pixels of a tile: dynbvh's packet "
+                   "traversal on wide trees, rtcIntersect16 for Embree); single: one ray at a time (intersect, rtcIntersect1)"))
+        ->type_name("R");
     app.add_option("--effects-depth", o.effects_depth, "most reflection/refraction bounces with --effects auto (default 5)")
         ->type_name("N")
         ->check(number_in(0, 64));
@@ -202,6 +206,11 @@ Options parse_options(int argc, char** argv) {
         if (raw.effects != "auto" && raw.effects != "primary")
             throw std::invalid_argument("--effects must be auto or primary, not '" + raw.effects + "'");
         o.effects = raw.effects == "auto";
+    }
+    if (given("--rays")) {
+        if (raw.rays != "packet" && raw.rays != "single")
+            throw std::invalid_argument("--rays must be packet or single, not '" + raw.rays + "'");
+        o.packets = raw.rays == "packet";
     }
     if (raw.no_warmup) o.warmup = false;
     if (o.sweep_only) o.sweep = true;

@@ -31,6 +31,7 @@ struct Options {
     bool quick = false, full = false;
     bool effects = false;                     ///< --effects auto: also render shadows, reflections and refractions where the scene calls for them
     int effects_depth = 5;                    ///< --effects-depth: most reflection/refraction bounces (render::Config::max_depth)
+    bool packets = true;                      ///< --rays packet (default): primary rays in packets of 16 (4x4 pixels); single: one at a time
     bool warmup = true;                       ///< one untimed build + trace per builder before the timed runs
     std::string info;                         ///< --info SPEC: print the scene's description and exit
     bool help = false;

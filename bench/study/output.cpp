@@ -123,6 +123,7 @@ std::string study_json(const StudyResults& r) {
                     {"sweep", o.sweep},
                     {"warmup", o.warmup},
                     {"effects", o.effects ? "auto" : "primary"},
+                    {"rays", o.packets ? "packet" : "single"},
                     {"effects_depth", o.effects_depth}};
     j["builders"] = r.builders;
     j["scenes"] = Json::array();

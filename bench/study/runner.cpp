@@ -139,6 +139,7 @@ std::vector<BuilderSpec> plan_builders(const Options& opt, StudyResults& res, Pr
     std::vector<BuilderSpec> specs;
     for (const auto& n : names) {
         BuilderSpec b = parse_builder(n);
+        b.packets = opt.packets;
         if (b.is_embree() && !embree_available()) {
             res.skipped.push_back({"*", b.name(), "built without Embree 3 (install libembree-dev and rebuild)"});
             continue;

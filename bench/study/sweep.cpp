@@ -53,6 +53,7 @@ void run_sweep(const Options& opt, const Backend& backend, const std::vector<std
     for (const auto& s : settings)
         if (std::none_of(distinct.begin(), distinct.end(), [&](const BuilderSpec& d) { return d.name() == s.spec.name(); }))
             distinct.push_back(s.spec);
+    for (auto& d : distinct) d.packets = opt.packets;   // the run's --rays
 
     const SceneOptions so{.scale = opt.scale, .seed = opt.seed};
     struct Planned {

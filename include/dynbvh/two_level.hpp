@@ -356,10 +356,16 @@ private:
         const double kappa = nl * na;
         const double pad = k * (nl * (na * big + c) + kappa * extent + big) + 16.0 * double(std::numeric_limits<T>::min());
         alpha = k * (kappa + 1);
+        return outward(lo, hi, pad, i);
+    }
+    /// The box [lo - e, hi + e] (double corners) rounded outward to T; std::invalid_argument naming instance
+    /// `i` when it overflows T.
+    static AABB<scalar_type> outward(const double* lo, const double* hi, double e, std::size_t i) {
+        using T = scalar_type;
         AABB<T> out;
         constexpr T tinf = std::numeric_limits<T>::infinity();
         for (std::size_t r = 0; r < 3; ++r) {
-            const double l = lo[r] - pad, h = hi[r] + pad;
+            const double l = lo[r] - e, h = hi[r] + e;
             T lt = T(l), ht = T(h);
             if (double(lt) > l) lt = std::nextafter(lt, -tinf);
             if (double(ht) < h) ht = std::nextafter(ht, tinf);
@@ -380,21 +386,8 @@ private:
     }
     /// Box `b` grown by `e` on every side, rounded outward to T (std::invalid_argument for instance `i` on overflow).
     static AABB<scalar_type> grown(const AABB<scalar_type>& b, double e, std::size_t i) {
-        using T = scalar_type;
-        constexpr T tinf = std::numeric_limits<T>::infinity();
-        AABB<T> out;
-        for (std::size_t r = 0; r < 3; ++r) {
-            const double l = double(b.min[r]) - e, h = double(b.max[r]) + e;
-            T lt = T(l), ht = T(h);
-            if (double(lt) > l) lt = std::nextafter(lt, -tinf);
-            if (double(ht) < h) ht = std::nextafter(ht, tinf);
-            if (!std::isfinite(lt) || !std::isfinite(ht))
-                throw std::invalid_argument("dynbvh::TwoLevel::commit: the world box of instance " + std::to_string(i) +
-                                            " overflows the scalar type");
-            out.min[r] = lt;
-            out.max[r] = ht;
-        }
-        return out;
+        const double lo[3] = {double(b.min.x), double(b.min.y), double(b.min.z)}, hi[3] = {double(b.max.x), double(b.max.y), double(b.max.z)};
+        return outward(lo, hi, e, i);
     }
 
     /// The float top level (top8_, boxes grown by the reach widening, see commit()): 8-wide near-first

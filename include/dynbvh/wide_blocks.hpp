@@ -104,7 +104,7 @@ void pack_wide_leaves(WideTree& w, std::span<const Index> prim_ids, const TriOf&
     constexpr int L = WideTree::block_lanes;
     // Step 1: leaves per node, and each node's first leaf (leaves are numbered in node order).
     const std::size_t nn = w.nodes.size();
-    std::vector<std::size_t> first_leaf(nn);
+    scratch_vector<std::size_t> first_leaf(nn);   // scratch: no fresh pages per build (these reach 100s of KiB)
     ex.for_each(0, nn, [&](std::size_t i) {
         std::size_t c = 0;
         for (int k = 0; k < W; ++k) c += w.nodes[i].count[k] != 0;
@@ -112,14 +112,14 @@ void pack_wide_leaves(WideTree& w, std::span<const Index> prim_ids, const TriOf&
     });
     const std::size_t leaf_count = ex.exclusive_scan(std::span<const std::size_t>(first_leaf), std::span<std::size_t>(first_leaf));
     // Step 2: the leaves' slot ranges.
-    std::vector<LeafRange> leaves(leaf_count);
+    scratch_vector<LeafRange> leaves(leaf_count);
     ex.for_each(0, nn, [&](std::size_t i) {
         std::size_t j = first_leaf[i];
         for (int k = 0; k < W; ++k)
             if (w.nodes[i].count[k] != 0) leaves[j++] = {w.nodes[i].child[k], w.nodes[i].count[k]};
     });
     // Step 3: pack, then point each leaf slot at its first block.
-    std::vector<std::size_t> first_block;
+    scratch_vector<std::size_t> first_block;
     pack_triangle_blocks<L>(std::span<const LeafRange>(leaves), prim_ids, tri_of, w.blocks, first_block, ex);
     ex.for_each(0, nn, [&](std::size_t i) {
         std::size_t j = first_leaf[i];

@@ -119,7 +119,7 @@ inline constexpr std::size_t prefetch_distance = 24;
 
 template <int L, class Index, class TriOf, class Exec = exec::serial>
 void pack_triangle_blocks(std::span<const LeafRange> leaves, std::span<const Index> prim_ids, const TriOf& tri_of,
-                          scratch_vector<TriangleBlock<L>>& blocks, std::vector<std::size_t>& first_block, const Exec& ex = {}) {
+                          scratch_vector<TriangleBlock<L>>& blocks, scratch_vector<std::size_t>& first_block, const Exec& ex = {}) {
     const std::size_t n = leaves.size();
     first_block.assign(n + 1, 0);
     ex.for_each(0, n, [&](std::size_t j) { first_block[j] = blocks_for<L>(leaves[j].count); });
