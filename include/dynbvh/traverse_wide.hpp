@@ -170,6 +170,45 @@ struct WideStackEntry {
     T tentry;
 };
 
+/// One step down from wide node `n` whose hit slots are `mask` (entry distances t[slot]): the nearest
+/// child becomes (cur, cur_count), the others go on the stack farthest first, so they pop nearest first.
+/// False (nothing changed) when the stack has no room for them (the caller takes the heap stack).
+/// Shared by the wide traversal and two-level scenes' top level (two_level.hpp).
+template <class WN, class Entry, class T, class I = typename WN::index_type>
+DYNBVH_ALWAYS_INLINE bool descend_nearest(const WN& n, unsigned mask, const T* t, Entry* stack, std::size_t& sp, std::size_t cap,
+                                          I& cur, I& cur_count) noexcept {
+    constexpr int W = WN::width;
+    const int a = std::countr_zero(mask);
+    mask &= mask - 1;
+    if (mask == 0) {   // one child hit: go there
+        cur = n.child[a];
+        cur_count = n.count[a];
+        return true;
+    }
+    const int b = std::countr_zero(mask);
+    mask &= mask - 1;
+    if (mask == 0) {   // two: the nearer now, the farther on the stack
+        if (sp + 1 > cap) [[unlikely]] return false;
+        const bool swap = t[b] < t[a];
+        const int near = swap ? b : a, far = swap ? a : b;
+        stack[sp++] = Entry{n.child[far], n.count[far], t[far]};
+        cur = n.child[near];
+        cur_count = n.count[near];
+        return true;
+    }
+    // Three or more: sort by entry distance, push all but the nearest, farthest first.
+    if (sp + (W - 1) > cap) [[unlikely]] return false;
+    int order[std::size_t(W)] = {a, b};
+    int m = 2;
+    for (; mask != 0; mask &= mask - 1) order[m++] = std::countr_zero(mask);
+    for (int i = 1; i < m; ++i)
+        for (int j = i; j > 0 && t[order[j]] < t[order[j - 1]]; --j) std::swap(order[j], order[j - 1]);
+    for (int i = m - 1; i > 0; --i) stack[sp++] = Entry{n.child[order[i]], n.count[order[i]], t[order[i]]};
+    cur = n.child[order[0]];
+    cur_count = n.count[order[0]];
+    return true;
+}
+
 /// The wide traversal loop for one direction octant; same contract as traverse_octant (traverse.hpp).
 /// Box distances are in box::robust's units (t * t_scale). The triangle test's per-ray setup is
 /// done when the first leaf is reached: most primary rays of an open scene never reach one.
@@ -218,36 +257,9 @@ bool wide_traverse_octant(const WideBvh<WN, P>& bvh, const Source tris, const Ra
         if (cur_count == 0) {
             const WN& n = nodes[cur];
             alignas(32) S t[std::size_t(W)];
-            unsigned mask = wb.template test<Oct>(n, tbox, t);
+            const unsigned mask = wb.template test<Oct>(n, tbox, t);
             if (mask != 0) {
-                const int a = std::countr_zero(mask);
-                mask &= mask - 1;
-                if (mask == 0) {   // one child hit: go there
-                    cur = n.child[a];
-                    cur_count = n.count[a];
-                    continue;
-                }
-                const int b = std::countr_zero(mask);
-                mask &= mask - 1;
-                if (mask == 0) {   // two: the nearer now, the farther on the stack
-                    if (sp + 1 > cap) [[unlikely]] return false;
-                    const bool swap = t[b] < t[a];
-                    const int near = swap ? b : a, far = swap ? a : b;
-                    stack[sp++] = Entry{n.child[far], n.count[far], t[far]};
-                    cur = n.child[near];
-                    cur_count = n.count[near];
-                    continue;
-                }
-                // Three or more: sort by entry distance, push all but the nearest, farthest first.
-                if (sp + (W - 1) > cap) [[unlikely]] return false;
-                int order[std::size_t(W)] = {a, b};
-                int m = 2;
-                for (; mask != 0; mask &= mask - 1) order[m++] = std::countr_zero(mask);
-                for (int i = 1; i < m; ++i)
-                    for (int j = i; j > 0 && t[order[j]] < t[order[j - 1]]; --j) std::swap(order[j], order[j - 1]);
-                for (int i = m - 1; i > 0; --i) stack[sp++] = Entry{n.child[order[i]], n.count[order[i]], t[order[i]]};
-                cur = n.child[order[0]];
-                cur_count = n.count[order[0]];
+                if (!descend_nearest(n, mask, t, stack, sp, cap, cur, cur_count)) [[unlikely]] return false;
                 continue;
             }
         } else {

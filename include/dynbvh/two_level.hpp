@@ -396,8 +396,8 @@ private:
     void trace_top8(const Ray<float>& ray, const detail::WideBoxTest<box::robust, float, 8>& wb, float t_scale,
                     InstanceHit<float>& best) const {
         using Index = typename NodeT::index_type;
-        using Entry = detail::WideStackEntry<Index, float>;
-        Entry stack[7 * (max_depth + 1)];   // depth < max_depth checked by the caller
+        using WideEntry = detail::WideStackEntry<Index, float>;
+        WideEntry stack[7 * (max_depth + 1)];   // depth < max_depth checked by the caller
         std::size_t sp = 0;
         float tmax = ray.tmax, tbox = tmax * t_scale;
         Index cur = 0, cur_count = 0;
@@ -405,22 +405,9 @@ private:
             if (cur_count == 0) {
                 const auto& n = top8_.nodes[cur];
                 alignas(32) float t[8];
-                unsigned mask = wb.template test<Oct>(n, tbox, t);
-                if (mask != 0 && (mask & (mask - 1)) == 0) {   // one child hit: go there
-                    const int a = std::countr_zero(mask);
-                    cur = n.child[a];
-                    cur_count = n.count[a];
-                    continue;
-                }
-                if (mask != 0) {
-                    int order[8];
-                    int m = 0;
-                    for (; mask != 0; mask &= mask - 1) order[m++] = std::countr_zero(mask);
-                    for (int i = 1; i < m; ++i)
-                        for (int j = i; j > 0 && t[order[j]] < t[order[j - 1]]; --j) std::swap(order[j], order[j - 1]);
-                    for (int i = m - 1; i > 0; --i) stack[sp++] = Entry{n.child[order[i]], n.count[order[i]], t[order[i]]};
-                    cur = n.child[order[0]];
-                    cur_count = n.count[order[0]];
+                const unsigned mask = wb.template test<Oct>(n, tbox, t);
+                if (mask != 0) {   // the stack holds 7 entries per level: always room
+                    detail::descend_nearest(n, mask, t, stack, sp, sizeof stack / sizeof stack[0], cur, cur_count);
                     continue;
                 }
             } else {
@@ -445,7 +432,7 @@ private:
                     }
                 }
             }
-            Entry next;
+            WideEntry next;
             if (!detail::pop_closer<box::robust>(stack, sp, tbox, next)) return;
             cur = next.child;
             cur_count = next.count;
