@@ -106,30 +106,19 @@ struct Method {
     std::vector<double> ms[2];   // per thread-count slot
 };
 
-/// Packets of N = 8 (4x2 pixels) or 16 (4x4) rays over each tile: `isect(rays, valid, prims)` traces
-/// the packet's rays (valid[k] == 0 for pixels outside the image) and writes their hit prims.
+/// Packets of N = 8 (4x2 pixels) or 16 (4x4) rays over each tile (study::for_each_packet, the study's
+/// tiling): `isect(rays, valid, prims)` traces the packet's rays (valid[k] == 0 past the tile's edge)
+/// and writes their hit prims.
 template <int N, class Isect>
 void trace_packets(const study::RayGen& gen, int threads, std::vector<std::uint32_t>& out, const Isect& isect) {
-    constexpr int pw = 4, ph = N / 4;
-    const int w = gen.width();
+    const auto w = std::size_t(gen.width());
     exec::omp{.threads = threads}.for_tasks(gen.tile_count(), [&](std::size_t k) {
-        const study::Tile t = gen.tile(k);
-        Rayf rays[N];
-        int valid[N];
-        std::uint32_t prims[N];
-        for (int y0 = t.y0; y0 < t.y1; y0 += ph)
-            for (int x0 = t.x0; x0 < t.x1; x0 += pw) {
-                for (int j = 0; j < N; ++j) {
-                    const int x = x0 + j % pw, y = y0 + j / pw;
-                    valid[j] = x < t.x1 && y < t.y1;
-                    rays[j] = gen.ray(valid[j] ? x : x0, valid[j] ? y : y0);
-                }
-                isect(rays, valid, prims);
-                for (int j = 0; j < N; ++j) {
-                    const int x = x0 + j % pw, y = y0 + j / pw;
-                    if (valid[j]) out[std::size_t(y) * std::size_t(w) + std::size_t(x)] = prims[j];
-                }
-            }
+        study::for_each_packet<N>(gen, gen.tile(k), [&](const Rayf* rays, const int* valid, int x0, int y0) {
+            std::uint32_t prims[N];
+            isect(rays, valid, prims);
+            for (int j = 0; j < N; ++j)
+                if (valid[j]) out[std::size_t(y0 + j / 4) * w + std::size_t(x0 + j % 4)] = prims[j];
+        });
     });
 }
 

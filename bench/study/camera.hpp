@@ -42,4 +42,24 @@ private:
     Vec3f eye_, corner_, du_, dv_;
 };
 
+/// The rays of tile `t` in packets of N = 8 (4x2 pixels) or 16 (4x4): f(rays, valid, x0, y0) once per
+/// packet, lane j being pixel (x0 + j % 4, y0 + j / 4); a lane past the tile's edge has valid[j] == 0
+/// and a copy of the packet's first ray. The one packet tiling of the study and dynbvh-bench-trace.
+template <int N, class F>
+void for_each_packet(const RayGen& gen, const Tile& t, F&& f) {
+    static_assert(N == 8 || N == 16, "packets of 8 (4x2) or 16 (4x4) rays");
+    constexpr int pw = 4, ph = N / 4;
+    Rayf rays[N];
+    int valid[N];
+    for (int y0 = t.y0; y0 < t.y1; y0 += ph)
+        for (int x0 = t.x0; x0 < t.x1; x0 += pw) {
+            for (int j = 0; j < N; ++j) {
+                const int x = x0 + j % pw, y = y0 + j / pw;
+                valid[j] = x < t.x1 && y < t.y1;
+                rays[j] = gen.ray(valid[j] ? x : x0, valid[j] ? y : y0);
+            }
+            f(static_cast<const Rayf*>(rays), static_cast<const int*>(valid), x0, y0);
+        }
+}
+
 } // namespace dynbvh::study

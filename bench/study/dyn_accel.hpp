@@ -40,24 +40,14 @@ void trace_tiles(const Backend& backend, const RayGen& gen, std::span<std::uint3
 /// ray is a copy of lane 0's) and writes the hit triangles of its valid lanes.
 template <int N, class Intersect>
 void trace_tiles_packets(const Backend& backend, const RayGen& gen, std::span<std::uint32_t> out, const Intersect& isect) {
-    constexpr int pw = 4, ph = N / 4;
-    const int w = gen.width();
+    const auto w = std::size_t(gen.width());
     backend.for_tasks(gen.tile_count(), [&](std::size_t k) {
-        const Tile t = gen.tile(k);
-        Rayf rays[N];
-        int valid[N];
-        std::uint32_t prims[N];
-        for (int y0 = t.y0; y0 < t.y1; y0 += ph)
-            for (int x0 = t.x0; x0 < t.x1; x0 += pw) {
-                for (int j = 0; j < N; ++j) {
-                    const int x = x0 + j % pw, y = y0 + j / pw;
-                    valid[j] = x < t.x1 && y < t.y1;
-                    rays[j] = gen.ray(valid[j] ? x : x0, valid[j] ? y : y0);
-                }
-                isect(rays, valid, prims);
-                for (int j = 0; j < N; ++j)
-                    if (valid[j]) out[std::size_t(y0 + j / pw) * std::size_t(w) + std::size_t(x0 + j % pw)] = prims[j];
-            }
+        for_each_packet<N>(gen, gen.tile(k), [&](const Rayf* rays, const int* valid, int x0, int y0) {
+            std::uint32_t prims[N];
+            isect(rays, valid, prims);
+            for (int j = 0; j < N; ++j)
+                if (valid[j]) out[std::size_t(y0 + j / 4) * w + std::size_t(x0 + j % 4)] = prims[j];
+        });
     });
 }
 

@@ -390,6 +390,29 @@ private:
         return outward(lo, hi, e, i);
     }
 
+    /// Instance k at a top-level leaf: the object ray (object_ray) against the object's traced tree with
+    /// the closest t so far; a closest hit narrows `tmax` and goes to `best`. AnyHit: true once one is found.
+    template <class Policy, bool AnyHit>
+    DYNBVH_ALWAYS_INLINE bool test_instance(std::uint32_t k, const Ray<scalar_type>& ray, scalar_type& tmax,
+                                            InstanceHit<scalar_type>& best) const {
+        const Object& obj = objects_[instances_[k].object];
+        const Ray<scalar_type> r = object_ray(inverses_[k], Ray<scalar_type>{ray.org, ray.dir, ray.tmin, tmax});
+        if constexpr (AnyHit) {
+            if (!dynbvh::occluded<Policy>(obj.traced, obj.tris, r)) return false;
+            best.prim = 0;
+            best.instance = k;
+            return true;
+        } else {
+            const Hit<scalar_type> h = dynbvh::intersect<Policy>(obj.traced, obj.tris, r);
+            if (h) {
+                static_cast<Hit<scalar_type>&>(best) = h;
+                best.instance = k;
+                tmax = h.t;
+            }
+            return false;
+        }
+    }
+
     /// The float top level (top8_, boxes grown by the reach widening, see commit()): 8-wide near-first
     /// traversal with the robust slab test (traverse_wide.hpp's box test), one octant.
     template <class Policy, bool AnyHit, int Oct>
@@ -411,26 +434,9 @@ private:
                     continue;
                 }
             } else {
-                for (std::size_t s = cur; s < std::size_t(cur) + cur_count; ++s) {
-                    const std::uint32_t k = static_cast<std::uint32_t>(top8_.prim_ids[s]);
-                    const Object& obj = objects_[instances_[k].object];
-                    const Ray<float> r = object_ray(inverses_[k], Ray<float>{ray.org, ray.dir, ray.tmin, tmax});
-                    if constexpr (AnyHit) {
-                        if (dynbvh::occluded<Policy>(obj.traced, obj.tris, r)) {
-                            best.prim = 0;
-                            best.instance = k;
-                            return;
-                        }
-                    } else {
-                        const Hit<float> h = dynbvh::intersect<Policy>(obj.traced, obj.tris, r);
-                        if (h) {
-                            static_cast<Hit<float>&>(best) = h;
-                            best.instance = k;
-                            tmax = h.t;
-                            tbox = tmax * t_scale;
-                        }
-                    }
-                }
+                for (std::size_t s = cur; s < std::size_t(cur) + cur_count; ++s)
+                    if (test_instance<Policy, AnyHit>(static_cast<std::uint32_t>(top8_.prim_ids[s]), ray, tmax, best)) return;
+                tbox = tmax * t_scale;
             }
             WideEntry next;
             if (!detail::pop_closer<box::robust>(stack, sp, tbox, next)) return;
@@ -577,25 +583,8 @@ private:
                     descend = true;
                 }
             } else {
-                for (std::size_t s = n.index; s < std::size_t(n.index) + n.count; ++s) {
-                    const std::uint32_t k = static_cast<std::uint32_t>(top_.prim_ids[s]);
-                    const Object& obj = objects_[instances_[k].object];
-                    const Ray<T> r = object_ray(inverses_[k], Ray<T>{ray.org, ray.dir, ray.tmin, tmax});
-                    if constexpr (AnyHit) {
-                        if (dynbvh::occluded<Policy>(obj.traced, obj.tris, r)) {
-                            best.prim = 0;
-                            best.instance = k;
-                            return best;
-                        }
-                    } else {
-                        const Hit<T> h = dynbvh::intersect<Policy>(obj.traced, obj.tris, r);
-                        if (h) {
-                            static_cast<Hit<T>&>(best) = h;
-                            best.instance = k;
-                            tmax = h.t;
-                        }
-                    }
-                }
+                for (std::size_t s = n.index; s < std::size_t(n.index) + n.count; ++s)
+                    if (test_instance<Policy, AnyHit>(static_cast<std::uint32_t>(top_.prim_ids[s]), ray, tmax, best)) return best;
             }
             if (descend) continue;
             // Pop the next subtree the ray may still reach before the best hit.
