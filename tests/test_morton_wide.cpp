@@ -83,7 +83,7 @@ void check_rays(const WB& w, std::span<const Trianglef> tris, std::uint64_t seed
 template <class WA, class WB>
 bool same_tree(const WA& a, const WB& b) {
     return a.nodes.size() == b.nodes.size() && a.prim_ids.size() == b.prim_ids.size() && a.depth == b.depth &&
-           std::memcmp(a.nodes.data(), b.nodes.data(), a.nodes.size() * sizeof(a.nodes[0])) == 0 &&
+           (a.nodes.empty() || std::memcmp(a.nodes.data(), b.nodes.data(), a.nodes.size() * sizeof(a.nodes[0])) == 0) &&
            std::equal(a.prim_ids.begin(), a.prim_ids.end(), b.prim_ids.begin());
 }
 

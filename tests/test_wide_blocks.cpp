@@ -311,7 +311,7 @@ std::string block_tree_difference(const WB& a, const WB& b) {
     if (a.nodes.size() != b.nodes.size() || a.blocks.size() != b.blocks.size() || a.depth != b.depth ||
         a.primitive_count != b.primitive_count || a.excluded != b.excluded)
         return "sizes or counts differ";
-    if (std::memcmp(a.nodes.data(), b.nodes.data(), a.nodes.size() * sizeof(a.nodes[0])) != 0) return "nodes differ";
+    if (!a.nodes.empty() && std::memcmp(a.nodes.data(), b.nodes.data(), a.nodes.size() * sizeof(a.nodes[0])) != 0) return "nodes differ";
     for (std::size_t i = 0; i < a.blocks.size(); ++i)
         if (std::memcmp(a.blocks[i].v, b.blocks[i].v, sizeof a.blocks[i].v) != 0 ||
             std::memcmp(a.blocks[i].prim, b.blocks[i].prim, sizeof a.blocks[i].prim) != 0 || a.blocks[i].count != b.blocks[i].count)
