@@ -422,7 +422,7 @@ Bvh<NodeT, Prim> build(std::span<const Triangle<typename NodeT::scalar_type>> tr
     return dynbvh::detail::build_over<0, NodeT, Prim>(tris, cfg, detail::Topology{}, ex);
 }
 
-/// Builds an binned SAH BVH over an indexed mesh read in place (mesh.hpp): the tree `build` gives over
+/// Builds a binned SAH BVH over an indexed mesh read in place (mesh.hpp): the tree `build` gives over
 /// `make_triangles(vertices, indices)`, bit for bit, without that copy. NodeT defaults to Node<T>.
 template <class NodeT = void, class Prim = prim::indexed, class Exec = exec::default_executor, class T, class Index>
 Bvh<dynbvh::detail::node_for_t<NodeT, T>, Prim> build(const MeshView<T, Index>& mesh, const Config& cfg = {}, const Exec& ex = {}) {

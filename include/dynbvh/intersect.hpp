@@ -123,6 +123,29 @@ DYNBVH_ALWAYS_INLINE constexpr bool replaces_hit(auto t, auto tmax, std::uint32_
     return t < tmax || prim + 1u > best + 1u;
 }
 
+/// A leaf test's hit (t, u, v) of triangle `prim`, recorded as every leaf loop records it (the scalar
+/// leaves, the block tests): an any-hit query takes it and stops (true); a closest-hit query keeps it
+/// when it replaces the best so far (replaces_hit), narrowing tmax and tbox = tmax * t_scale, and goes
+/// on (false).
+template <bool AnyHit, class T>
+DYNBVH_ALWAYS_INLINE bool record_hit(T t, T u, T v, std::uint32_t prim, T t_scale, T& tmax, T& tbox, std::uint32_t& best_prim,
+                                     Hit<T>& hit) noexcept {
+    if constexpr (!AnyHit)
+        if (!replaces_hit(t, tmax, prim, best_prim)) return false;   // an exact tie with a larger index
+    hit.t = t;
+    hit.u = u;
+    hit.v = v;
+    if constexpr (AnyHit) {
+        hit.prim = prim;
+        return true;
+    } else {
+        tmax = t;
+        tbox = t * t_scale;
+        best_prim = prim;
+        return false;
+    }
+}
+
 template <class T>
 inline void check_scalar() noexcept {
     static_assert(std::is_same_v<T, float> || std::is_same_v<T, double>, "dynbvh: scalar must be float or double");

@@ -77,24 +77,9 @@ DYNBVH_ALWAYS_INLINE bool test_leaf(const typename Tri::template prepared<T>& pt
     for (std::size_t slot = first; slot < end; ++slot) {
         const Triangle<T>& tri = Precomputed ? leaf_tris[slot] : leaf_tris[ids[slot]];
         T t, u, v;
-        if (Tri::test(pt, tri, tmax, t, u, v)) {
-            const std::uint32_t prim = static_cast<std::uint32_t>(ids[slot]);
-            if constexpr (AnyHit) {
-                hit.t = t;
-                hit.u = u;
-                hit.v = v;
-                hit.prim = prim;
-                return true;
-            } else {
-                if (!replaces_hit(t, tmax, prim, best_prim)) continue;   // an exact tie with a larger index
-                hit.t = t;
-                hit.u = u;
-                hit.v = v;
-                tmax = t;
-                tbox = t * t_scale;
-                best_prim = prim;
-            }
-        }
+        if (Tri::test(pt, tri, tmax, t, u, v) &&
+            record_hit<AnyHit>(t, u, v, static_cast<std::uint32_t>(ids[slot]), t_scale, tmax, tbox, best_prim, hit))
+            return true;
     }
     return false;
 }

@@ -179,21 +179,7 @@ protected:
     DYNBVH_ALWAYS_INLINE bool confirm(const TriangleBlock<L>& b, int k, float t_scale, float& tmax, float& tbox,
                                       std::uint32_t& best_prim, Hit<float>& hit) const {
         float t, u, v;
-        if (!Tri::test(pt, b.triangle(k), tmax, t, u, v)) return false;
-        if constexpr (!AnyHit)
-            if (!replaces_hit(t, tmax, b.prim[k], best_prim)) return false;
-        hit.t = t;
-        hit.u = u;
-        hit.v = v;
-        if constexpr (AnyHit) {
-            hit.prim = b.prim[k];
-            return true;
-        } else {
-            tmax = t;
-            tbox = t * t_scale;
-            best_prim = b.prim[k];
-            return false;
-        }
+        return Tri::test(pt, b.triangle(k), tmax, t, u, v) && record_hit<AnyHit>(t, u, v, b.prim[k], t_scale, tmax, tbox, best_prim, hit);
     }
 };
 
@@ -295,20 +281,9 @@ struct BlockTest<tri::watertight, L> {
             for (unsigned m = candidates(b); m != 0; m &= m - 1) {
                 const int k = std::countr_zero(m);
                 float t, u, v;
-                if (!tri::watertight::test(pt, b.triangle(k), tmax, t, u, v)) continue;
-                if constexpr (!AnyHit)
-                    if (!replaces_hit(t, tmax, b.prim[k], best_prim)) continue;
-                hit.t = t;
-                hit.u = u;
-                hit.v = v;
-                if constexpr (AnyHit) {
-                    hit.prim = b.prim[k];
+                if (tri::watertight::test(pt, b.triangle(k), tmax, t, u, v) &&
+                    record_hit<AnyHit>(t, u, v, b.prim[k], t_scale, tmax, tbox, best_prim, hit))
                     return true;
-                } else {
-                    tmax = t;
-                    tbox = t * t_scale;
-                    best_prim = b.prim[k];
-                }
             }
         }
         return false;
@@ -378,19 +353,8 @@ struct BlockTest<tri::moller_trumbore, L> {
             for (unsigned m = hits(b, tmax, t, u, v); m != 0; m &= m - 1) {
                 const int k = std::countr_zero(m);
                 if (!(t[k] <= tmax)) continue;   // an earlier lane of this block came closer
-                if constexpr (!AnyHit)
-                    if (!replaces_hit(t[k] + 0.0f, tmax, b.prim[k], best_prim)) continue;
-                hit.t = t[k] + 0.0f;             // -0 -> +0, as the scalar test
-                hit.u = u[k];
-                hit.v = v[k];
-                if constexpr (AnyHit) {
-                    hit.prim = b.prim[k];
-                    return true;
-                } else {
-                    tmax = hit.t;
-                    tbox = hit.t * t_scale;
-                    best_prim = b.prim[k];
-                }
+                // -0 -> +0, as the scalar test
+                if (record_hit<AnyHit>(t[k] + 0.0f, u[k], v[k], b.prim[k], t_scale, tmax, tbox, best_prim, hit)) return true;
             }
         }
         return false;
