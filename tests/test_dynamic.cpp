@@ -4,6 +4,7 @@
 #include "support.hpp"
 #include "hit_compare.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <string>
@@ -121,6 +122,86 @@ TEST_CASE("Dynamic: rebuilds exactly when the refitted SAH exceeds the threshold
     // The script must exercise both branches of the rule.
     CHECK(rebuilds >= 3);
     CHECK(refits >= 3);
+}
+
+TEST_CASE("Dynamic: the amortized rule rebuilds exactly when the estimated trace time lost reaches the rebuild cost") {
+    const auto base = sphere(12, 24);
+    const exec::serial ex;
+    constexpr double cost = 5.0;   // what a rebuild is taken to cost (ms): fixed, so the script is exact
+    Dynamic<builder::ploc, Node<>, prim::indexed, exec::serial> dyn({.rule = RebuildRule::amortized, .rebuild_ms = cost}, ex);
+    // Scripted trace times (ms) per frame, and the expectation recomputed independently: our own tree,
+    // refitted each frame; loss = trust * (sum over traced frames of T (1 - s_rebuilt / s), plus this
+    // frame's prediction T_prev * s / s_prev * (1 - s_rebuilt / s)); after each rebuild the first trace
+    // time moves trust halfway to the measured share of the predicted saving (clamped to [0, 1], >= 1/8).
+    const double trace_ms[] = {10, 12, 9, 30, 30, 4, 4, 50, 1, 1, 1, 20, 20, 20, 20, 20, 20, 20};
+    Bvh<> mine;
+    double rebuilt_sah = 0, loss = 0, prev_ms = 0, prev_sah = 0, trust = 1, check_refit = 0, check_fresh = 0;
+    bool check = false;
+    int rebuilds = 0, refits = 0, checks = 0;
+    for (int f = 0; f < 18; ++f) {
+        const auto tris = exploding(base, f);
+        const std::span<const Trianglef> s(tris);
+        const FrameReport r = dyn.update(s);
+        CAPTURE(f);
+        Decision want = Decision::refit;
+        if (f == 0) {
+            want = Decision::rebuild;
+            CHECK(r.reason == Reason::first_frame);
+        } else {
+            refit(mine, s, ex);
+            const double now = sah_cost(mine, {}, ex);
+            const double predicted = now > rebuilt_sah ? trust * prev_ms * now / prev_sah * (1 - rebuilt_sah / now) : 0;
+            CHECK(r.loss_ms == doctest::Approx(loss + predicted).epsilon(1e-12));
+            CHECK(r.rebuild_cost_ms == cost);
+            CHECK(r.trust == doctest::Approx(trust).epsilon(1e-12));
+            if (loss + predicted >= cost) {
+                want = Decision::rebuild;
+                check = true;
+                check_refit = prev_ms * now / prev_sah;
+            }
+        }
+        if (want == Decision::rebuild) {
+            mine = ploc::build<Node<>, prim::indexed>(s, {}, ex);
+            rebuilt_sah = sah_cost(mine, {}, ex);
+            if (f > 0) check_fresh = prev_ms * rebuilt_sah / prev_sah;
+            loss = 0;
+            ++rebuilds;
+            if (f > 0) CHECK(r.reason == Reason::amortized);
+        } else {
+            ++refits;
+            CHECK(r.reason == Reason::none);
+        }
+        CHECK(r.decision == want);
+        CHECK(same_bits(r.sah_after, sah_cost(mine, {}, ex)));
+        CHECK(same_bits(r.sah_rebuilt, rebuilt_sah));
+        // the caller traces, then reports
+        check_exact(dyn.bvh(), tris, 300 + std::uint64_t(f), "frame " + std::to_string(f));
+        dyn.record_trace_ms(trace_ms[f]);
+        if (check) {
+            const double share = (check_refit - trace_ms[f]) / (check_refit - check_fresh);
+            if (check_refit > check_fresh) trust = std::max(0.125, 0.5 * trust + 0.5 * std::clamp(share, 0.0, 1.0));
+            check = false;
+            ++checks;
+        }
+        const double now = sah_cost(mine, {}, ex);
+        if (now > rebuilt_sah) loss += trust * trace_ms[f] * (1 - rebuilt_sah / now);
+        prev_ms = trace_ms[f];
+        prev_sah = now;
+    }
+    CHECK(rebuilds >= 3);
+    CHECK(refits >= 3);
+    CHECK(checks >= 2);
+    CHECK(trust < 1);   // the script's times after rebuilds do not show the whole predicted saving
+    // Without reported trace times the rule is sah_growth's; bad trace times are ignored; bad costs throw.
+    Dynamic<builder::lbvh, Node<>, prim::copied, exec::serial> quiet({.rule = RebuildRule::amortized, .rebuild_threshold = 0});
+    for (int f = 0; f < 3; ++f) {
+        const FrameReport r = quiet.update(exploding(base, f));
+        CHECK(r.decision == Decision::rebuild);
+        CHECK(r.reason == (f == 0 ? Reason::first_frame : Reason::sah_growth));
+        quiet.record_trace_ms(std::numeric_limits<double>::quiet_NaN());
+        quiet.record_trace_ms(-1);
+    }
+    CHECK_THROWS_WITH_AS(Dynamic<>({.rebuild_ms = -1.0}), doctest::Contains("cfg.rebuild_ms"), std::invalid_argument);
 }
 
 TEST_CASE("Dynamic: threshold 0 rebuilds every frame, +inf never rebuilds for SAH growth; bad thresholds throw") {

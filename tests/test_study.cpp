@@ -207,21 +207,24 @@ TEST_CASE("study: SAH of a 2-triangle scene is exact, and --info describes it") 
     CHECK(info.at("topology_changes") == false);
 }
 
-TEST_CASE("study: auto (refit or rebuild) records its decisions, consistent with its SAHs and threshold") {
+TEST_CASE("study: auto (refit or rebuild) records its decisions, consistent with its SAHs, threshold and amortized costs") {
     const auto out = tmp / "auto";
     std::filesystem::remove_all(out);
     std::filesystem::create_directories(out);
-    // th=0 rebuilds every frame; th=1e9 never rebuilds after the first frame; auto:lbvh with either is then
-    // exactly lbvh rebuilt every frame, or the study's refit (LBVH at frame 0, refitted): same SAH per frame.
-    const int rc = run_study("--scenes n-body --scale 0.02 --frames 5 --builders lbvh,refit,ploc,auto,auto:th=1.05,"
-                             "auto:lbvh:th=0,auto:lbvh:th=1e9,auto:async=1 --res 32x24 --images 0 --threads 2 --no-warmup "
+    // rule=sah: th=0 rebuilds every frame; th=1e9 never rebuilds after the first frame; auto:lbvh with either
+    // is then exactly lbvh rebuilt every frame, or the study's refit (LBVH at frame 0, refitted): same SAH
+    // per frame. auto (rule=amortized) rebuilds exactly when its reported loss reaches its rebuild cost.
+    const int rc = run_study("--scenes n-body --scale 0.02 --frames 5 --builders lbvh,refit,ploc,auto,auto:rule=sah,"
+                             "auto:th=1.05:rule=sah,auto:lbvh:th=0:rule=sah,auto:lbvh:th=1e9:rule=sah,auto:async=1:rule=sah,"
+                             "auto:async=1 --res 32x24 --images 0 --threads 2 --no-warmup "
                              "--out \"" + out.string() + "\"",
                              out / "log.txt");
     INFO(read_all(out / "log.txt"));
     REQUIRE(rc == 0);
     const Json j = Json::parse(read_all(out / "study.json"));
-    CHECK(j.at("builders") == Json::array({"lbvh", "refit", "ploc", "auto", "auto:th=1.05", "auto:lbvh:th=0",
-                                           "auto:lbvh:th=1e+09", "auto:async=1"}));
+    CHECK(j.at("builders") == Json::array({"lbvh", "refit", "ploc", "auto", "auto:rule=sah", "auto:th=1.05:rule=sah",
+                                           "auto:lbvh:th=0:rule=sah", "auto:lbvh:th=1e+09:rule=sah",
+                                           "auto:async=1:rule=sah", "auto:async=1"}));
     const auto group = [&](const std::string& b) -> const Json& {
         for (const auto& g : j.at("results"))
             if (g.at("builder") == b) return g;
@@ -229,7 +232,8 @@ TEST_CASE("study: auto (refit or rebuild) records its decisions, consistent with
         return j;
     };
     const std::vector<std::pair<std::string, double>> autos = {
-        {"auto", 1.3}, {"auto:th=1.05", 1.05}, {"auto:lbvh:th=0", 0}, {"auto:lbvh:th=1e+09", 1e9}, {"auto:async=1", 1.3}};
+        {"auto", 1.3}, {"auto:rule=sah", 1.3}, {"auto:th=1.05:rule=sah", 1.05}, {"auto:lbvh:th=0:rule=sah", 0},
+        {"auto:lbvh:th=1e+09:rule=sah", 1e9}, {"auto:async=1:rule=sah", 1.3}, {"auto:async=1", 1.3}};
     const auto& hits_ref = group("ploc").at("per_frame");
     for (const auto& [name, th] : autos) {
         INFO(name);
@@ -237,6 +241,9 @@ TEST_CASE("study: auto (refit or rebuild) records its decisions, consistent with
         const auto& frames = g.at("per_frame");
         REQUIRE(frames.size() == 5);
         CHECK(g.at("strategy").at("threshold").get<double>() == th);
+        const bool amortized = name.find("rule=sah") == std::string::npos;
+        const bool async = name.find("async=1") != std::string::npos;
+        CHECK(g.at("strategy").at("rule") == (amortized ? "amortized" : "sah"));
         std::size_t counted[3] = {0, 0, 0};
         for (std::size_t k = 0; k < frames.size(); ++k) {
             INFO("frame " << k);
@@ -256,19 +263,24 @@ TEST_CASE("study: auto (refit or rebuild) records its decisions, consistent with
             }
             const double before = f.at("sah_before").get<double>();
             const double limit = th * frames.at(k - 1).at("sah_rebuilt").get<double>();
+            const double loss = f.at("loss_ms").get<double>(), cost = f.at("rebuild_cost_ms").get<double>();
+            // amortized: every frame after the first has the previous frame's trace time, so the rule applies
+            if (amortized && d != "swap") CHECK(cost > 0);
+            if (!amortized) CHECK(loss == 0);
             if (d == "refit") {
-                // within the threshold (or, async, a background rebuild is already running)
-                if (why == "none" && name != "auto:async=1") CHECK(before <= limit);
+                // within the rule (or, async, a background rebuild is already running)
+                if (why == "none" && !async) CHECK((amortized ? loss < cost : before <= limit));
+                if (amortized && !async) CHECK(why == "none");
                 CHECK(f.at("sah_after").get<double>() == before);
                 CHECK(f.at("sah_rebuilt") == frames.at(k - 1).at("sah_rebuilt"));
             } else if (d == "rebuild") {
-                CHECK(name != "auto:async=1");   // async rebuilds in the background only
-                CHECK(why == "sah_growth");
-                CHECK(before > limit);
+                CHECK(!async);   // async rebuilds in the background only
+                CHECK(why == (amortized ? "amortized" : "sah_growth"));
+                CHECK((amortized ? loss >= cost : before > limit));
                 CHECK(f.at("sah_rebuilt").get<double>() == f.at("sah").get<double>());
             } else {
                 CHECK(d == "swap");
-                CHECK(name == "auto:async=1");
+                CHECK(async);
                 CHECK(why == "rebuild_ready");
             }
         }
@@ -279,12 +291,12 @@ TEST_CASE("study: auto (refit or rebuild) records its decisions, consistent with
     }
     // th=0: a rebuild every frame, the very tree lbvh builds; th=1e9: refits only, the study's refit tree.
     for (std::size_t k = 0; k < 5; ++k) {
-        CHECK(group("auto:lbvh:th=0").at("per_frame").at(k).at("decision") == "rebuild");
+        CHECK(group("auto:lbvh:th=0:rule=sah").at("per_frame").at(k).at("decision") == "rebuild");
         // (the same tree; the SAH's parallel sum may round differently from run to run)
-        CHECK(group("auto:lbvh:th=0").at("per_frame").at(k).at("sah").get<double>() ==
+        CHECK(group("auto:lbvh:th=0:rule=sah").at("per_frame").at(k).at("sah").get<double>() ==
               doctest::Approx(group("lbvh").at("per_frame").at(k).at("sah").get<double>()).epsilon(1e-12));
-        if (k > 0) CHECK(group("auto:lbvh:th=1e+09").at("per_frame").at(k).at("decision") == "refit");
-        CHECK(group("auto:lbvh:th=1e+09").at("per_frame").at(k).at("sah").get<double>() ==
+        if (k > 0) CHECK(group("auto:lbvh:th=1e+09:rule=sah").at("per_frame").at(k).at("decision") == "refit");
+        CHECK(group("auto:lbvh:th=1e+09:rule=sah").at("per_frame").at(k).at("sah").get<double>() ==
               doctest::Approx(group("refit").at("per_frame").at(k).at("sah").get<double>()).epsilon(1e-12));
     }
     // Per-frame builders have no decisions.
@@ -293,22 +305,22 @@ TEST_CASE("study: auto (refit or rebuild) records its decisions, consistent with
     // CSV: the decision columns, filled for strategies only.
     const std::string csv = read_all(out / "study.csv");
     const std::string header = csv.substr(0, csv.find('\n'));
-    CHECK(header.ends_with(",ms_shade,decision,reason,sah_before,sah_after,sah_rebuilt"));
-    CHECK(csv.find(",auto:lbvh:th=0,") != std::string::npos);
+    CHECK(header.ends_with(",ms_shade,decision,reason,sah_before,sah_after,sah_rebuilt,loss_ms,rebuild_cost_ms"));
+    CHECK(csv.find(",auto:lbvh:th=0:rule=sah,") != std::string::npos);
     std::size_t rebuild_rows = 0, plain_rows = 0;
     for (std::size_t pos = csv.find('\n') + 1; pos < csv.size();) {
         const std::size_t end = csv.find('\n', pos);
         const std::string line = csv.substr(pos, end - pos);
         pos = end + 1;
         if (line.find(",auto") != std::string::npos) rebuild_rows += line.find(",rebuild,") != std::string::npos;
-        else plain_rows += line.ends_with(",,,,,");
+        else plain_rows += line.ends_with(",,,,,,,");
     }
-    CHECK(rebuild_rows >= 5 + 4);   // auto:lbvh:th=0 every frame, every other strategy at frame 0
+    CHECK(rebuild_rows >= 5 + 6);   // auto:lbvh:th=0 every frame, every other strategy at frame 0
     CHECK(plain_rows == 3 * 5);
     // The report: the strategies table and a frame-time-per-frame plot with every builder.
     const std::string report = read_all(out / "report.md");
     CHECK(report.find("## Strategies") != std::string::npos);
-    CHECK(report.find("| n-body | auto:lbvh:th=0 | 32x24 | 5 | 0 | 5 | 0 |") != std::string::npos);
+    CHECK(report.find("| n-body | auto:lbvh:th=0:rule=sah | 32x24 | 5 | 0 | 5 | 0 |") != std::string::npos);
     CHECK(report.find("fig_frames_n-body_32x24.svg") != std::string::npos);
     const std::string plot = read_all(out / "fig_frames_n-body_32x24.svg");
     for (const char* b : {">lbvh</text>", ">refit</text>", ">auto</text>", ">auto:async=1</text>"}) CHECK_MESSAGE(plot.find(b) != std::string::npos, b);

@@ -1,6 +1,7 @@
 // The `auto` strategy's Accel (see auto_accel.hpp), on every executor.
 #include "auto_accel.hpp"
 
+#include <chrono>
 #include <cmath>
 #include <stdexcept>
 
@@ -29,6 +30,7 @@ const char* reason_name(Reason r) {
         case Reason::topology: return "topology";
         case Reason::finiteness: return "finiteness";
         case Reason::sah_growth: return "sah_growth";
+        case Reason::amortized: return "amortized";
         case Reason::rebuild_ready: return "rebuild_ready";
     }
     return "?";
@@ -51,7 +53,8 @@ class AutoAccel final : public Accel {
 public:
     AutoAccel(const BuilderSpec& spec, const Exec& ex, const Backend& backend)
         : spec_(spec), ex_(ex), backend_(backend),
-          dyn_(typename Dyn::config_type{.rebuild_threshold = spec.threshold,
+          dyn_(typename Dyn::config_type{.rule = spec.amortized ? RebuildRule::amortized : RebuildRule::sah_growth,
+                                         .rebuild_threshold = spec.threshold,
                                          .async = spec.async,
                                          .builder = builder_config<B>(spec),
                                          .cost = SahCost{.ct = 3, .ci = 2}},   // the study's SAH column
@@ -68,7 +71,10 @@ public:
     }
     void release_previous() override { previous_ = Trees{}; }
     void trace(std::span<const Trianglef> tris, const RayGen& gen, std::span<std::uint32_t> out) override {
+        // The amortized rule's input: this frame's trace time (what a renderer would measure too).
+        const auto start = std::chrono::steady_clock::now();
         current_.trace(spec_, backend_, tris, gen, out);
+        dyn_.record_trace_ms(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count());
     }
     std::optional<double> sah() const override { return report_.sah_after; }
     std::optional<std::size_t> memory_bytes() const override { return current_.memory_bytes(spec_); }
@@ -80,6 +86,10 @@ public:
         s.sah_after = report_.sah_after;
         s.sah_rebuilt = report_.sah_rebuilt;
         s.threshold = spec_.threshold;
+        s.rule = spec_.amortized ? "amortized" : "sah";
+        s.loss_ms = report_.loss_ms;
+        s.rebuild_cost_ms = report_.rebuild_cost_ms;
+        s.trust = report_.trust;
         s.rebuild_started = report_.rebuild_started;
         return s;
     }

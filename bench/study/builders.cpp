@@ -48,7 +48,7 @@ T knob_number(const std::string& spec, const std::string& key, const std::string
     return x;
 }
 
-/// auto's own knobs: the rebuild builder ("auto:lbvh", second part only), th=, async=, and r=/bits= of that
+/// auto's own knobs: the rebuild builder ("auto:lbvh", second part only), rule=, th=, async=, and r=/bits= of that
 /// builder. True when `part` was one of them; false leaves it to the knobs every builder of ours has.
 bool parse_dynamic_knob(BuilderSpec& b, const std::string& spec, const std::string& part, std::size_t i) {
     const auto eq = part.find('=');
@@ -64,6 +64,12 @@ bool parse_dynamic_knob(BuilderSpec& b, const std::string& spec, const std::stri
         b.threshold = knob_number<double>(spec, key, v);
         if (!(b.threshold >= 0) || std::isinf(b.threshold))
             throw std::invalid_argument("builder '" + spec + "': th must be a finite number >= 0 (0 rebuilds every frame)");
+        return true;
+    }
+    if (key == "rule") {
+        if (v != "amortized" && v != "sah")
+            throw std::invalid_argument("builder '" + spec + "': rule must be amortized (the default) or sah");
+        b.amortized = v == "amortized";
         return true;
     }
     if (key == "async") {
@@ -99,7 +105,7 @@ bool parse_two_level_knob(BuilderSpec& b, const std::string& spec, const std::st
         return true;
     }
     const std::string key = part.substr(0, eq);
-    if (key == "wide" || key == "box" || key == "tri" || key == "prim" || key == "async")
+    if (key == "wide" || key == "box" || key == "tri" || key == "prim" || key == "async" || key == "rule")
         throw std::invalid_argument("builder '" + spec + "': two-level has no knob '" + key +
                                     "' (it traces binary trees with the robust tests, dynbvh::TwoLevel)");
     if (key == "th" || key == "r" || key == "bits") return parse_dynamic_knob(b, spec, part, i);
@@ -146,6 +152,7 @@ std::string BuilderSpec::name() const {
         s += ":th=" + std::string(buf, r.ptr);
     }
     if (async) s += ":async=1";
+    if (amortized != d.amortized) s += ":rule=sah";
     return s;
 }
 

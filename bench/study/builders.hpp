@@ -59,6 +59,7 @@ struct BuilderSpec {
     Kind over = Kind::ploc;        ///< auto, two-level: the builder its (re)builds use (ploc or lbvh: "auto:lbvh")
     double threshold = 1.3;        ///< auto: rebuild past this many times the last rebuild's SAH ("th=1.5")
     bool async = false;            ///< auto: rebuild on a background thread, swap when ready ("async=1")
+    bool amortized = true;         ///< auto: Dynamic's amortized rule, fed each frame's trace time ("rule=sah": the threshold)
     bool packets = true;           ///< primary rays in packets of 16 (the run's --rays; not part of the name)
 
     bool is_embree() const noexcept { return kind == Kind::embree_low || kind == Kind::embree_medium || kind == Kind::embree_refit || kind == Kind::embree_two_level; }

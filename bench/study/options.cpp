@@ -57,8 +57,9 @@ Builders (--builders, comma separated; default: all available)
   lbvh, kbvh (presplit + PLOC), ploc (r = 5), binned-sah, refit (LBVH at frame 0, refitted after),
   morton-wide (the wide tree straight from the sorted Morton codes, leaves in SIMD triangle blocks; no
   binary tree, so no SAH column), embree-low, embree-medium, embree-refit (when built with Embree 3)
-  auto, auto:lbvh (strategy dynbvh::Dynamic: refit each frame, rebuild with PLOC or LBVH past th x the last
-  rebuild's SAH; knobs th=1.3, async=1 (rebuild in the background, swap when ready), r=, bits=)
+  auto, auto:lbvh (strategy dynbvh::Dynamic: refit each frame, rebuild with PLOC or LBVH once the trace time
+  refitting lost since the last rebuild reaches a rebuild's time; knobs rule=sah (rebuild past th x the last
+  rebuild's SAH instead), th=1.3, async=1 (rebuild in the background, swap when ready), r=, bits=)
   two-level, two-level:lbvh (dynbvh::TwoLevel: one tree per object of the frame, built once for rigid
   objects and placed by their transforms, refitted or rebuilt for deforming ones (th=), a top-level tree
   rebuilt every frame; scenes whose frames expose no objects are skipped)

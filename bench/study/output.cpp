@@ -44,6 +44,10 @@ Json records_json(const std::vector<FrameRecord>& recs) {
             j["sah_after"] = f.strategy->sah_after;
             j["sah_rebuilt"] = f.strategy->sah_rebuilt;
             j["rebuild_started"] = f.strategy->rebuild_started;
+            j["rule"] = f.strategy->rule;
+            j["loss_ms"] = f.strategy->loss_ms;
+            j["rebuild_cost_ms"] = f.strategy->rebuild_cost_ms;
+            j["trust"] = f.strategy->trust;
         }
         a.push_back(std::move(j));
     }
@@ -60,7 +64,7 @@ Json strategy_json(const std::vector<FrameRecord>& recs) {
         rebuild += f.strategy->decision == "rebuild";
         swap += f.strategy->decision == "swap";
     }
-    return {{"threshold", recs.front().strategy->threshold}, {"refit", refit}, {"rebuild", rebuild}, {"swap", swap}};
+    return {{"rule", recs.front().strategy->rule}, {"threshold", recs.front().strategy->threshold}, {"refit", refit}, {"rebuild", rebuild}, {"swap", swap}};
 }
 
 void add_summary(Json& j, const Summary& s) {
@@ -193,7 +197,7 @@ std::string csv_field(const std::string& s) {
 std::string study_csv(const StudyResults& r) {
     std::string o = "kind,scene,builder,group,width,height,rep,frame,triangles,build_ms,trace_ms,sah,memory_bytes,hits,"
                     "rays_primary,rays_shadow,rays_reflection,rays_refraction,ms_primary,ms_shadow,ms_reflection,ms_refraction,"
-                    "ms_shade,decision,reason,sah_before,sah_after,sah_rebuilt\n";
+                    "ms_shade,decision,reason,sah_before,sah_after,sah_rebuilt,loss_ms,rebuild_cost_ms\n";
     auto row = [&](const char* kind, const std::string& scene, const std::string& builder, const std::string& group, Resolution res,
                    const FrameRecord& f) {
         o += std::string(kind) + "," + csv_field(scene) + "," + csv_field(builder) + "," + csv_field(group) + "," +
@@ -207,9 +211,10 @@ std::string study_csv(const StudyResults& r) {
         if (f.strategy)
             o += "," + f.strategy->decision + "," + f.strategy->reason + "," +
                  (f.strategy->sah_before ? csv_number(*f.strategy->sah_before) : std::string()) + "," +
-                 csv_number(f.strategy->sah_after) + "," + csv_number(f.strategy->sah_rebuilt) + "\n";
+                 csv_number(f.strategy->sah_after) + "," + csv_number(f.strategy->sah_rebuilt) + "," +
+                 csv_number(f.strategy->loss_ms) + "," + csv_number(f.strategy->rebuild_cost_ms) + "\n";
         else
-            o += ",,,,,\n";
+            o += ",,,,,,,\n";
     };
     for (const auto& g : r.groups)
         for (const auto& f : g.records) row("study", g.scene, g.builder, "", g.res, f);

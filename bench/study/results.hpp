@@ -40,11 +40,15 @@ inline constexpr std::array<const char*, 4> effect_kind_names{"primary", "shadow
 /// dynbvh::FrameReport. SAHs with Ct = 3, Ci = 2, like FrameRecord::sah.
 struct StrategyRecord {
     std::string decision;              ///< "refit", "rebuild" or "swap"
-    std::string reason;                ///< "none", "first_frame", "topology", "finiteness", "sah_growth", "rebuild_ready"
+    std::string reason;                ///< "none", "first_frame", "topology", "finiteness", "sah_growth", "amortized", "rebuild_ready"
     std::optional<double> sah_before;  ///< the previous tree refitted to this frame; none when there was none
     double sah_after = 0;              ///< the tree serving this frame (= FrameRecord::sah)
     double sah_rebuilt = 0;            ///< the serving tree's SAH right after its build (what the threshold multiplies)
-    double threshold = 0;              ///< the rule's rebuild threshold
+    double threshold = 0;              ///< the sah rule's rebuild threshold
+    std::string rule;                  ///< "amortized" or "sah"
+    double loss_ms = 0;                ///< amortized: trace time estimated lost to refitting since the last rebuild
+    double rebuild_cost_ms = 0;        ///< amortized: what a rebuild is taken to cost (the last one's time)
+    double trust = 1;                  ///< amortized: share of SAH-predicted savings rebuilds delivered (FrameReport::trust)
     bool rebuild_started = false;      ///< async: a background rebuild started this frame
 };
 

@@ -8,10 +8,24 @@
 ///       auto hit = dynbvh::intersect(scene.bvh(), tris, ray);
 ///   }
 /// @endcode
-/// Each frame the tree is refitted (refit.hpp) and its SAH (sah.hpp) compared with the SAH the tree
-/// had right after its last rebuild; past `rebuild_threshold` times that, the tree is rebuilt. A
-/// changed triangle count (topology), or a changed set of non-finite triangles (the builders leave
-/// those out, and refit cannot add them back), rebuilds at once.
+/// Each frame the tree is refitted (refit.hpp) and its SAH (sah.hpp) evaluated. Two rules decide when
+/// it is rebuilt instead (`DynamicConfig::rule`):
+///  - `amortized` (the default, once the caller reports trace times with record_trace_ms()): trace time
+///    is taken as proportional to the SAH (Goldsmith & Salmon 1987; MacDonald & Booth 1990), so of a frame
+///    traced in T ms with SAH s, T (1 - s_rebuilt / s) is the time the refitted tree lost against a fresh
+///    one (s_rebuilt: the SAH right after the last rebuild). The losses are summed since the last rebuild,
+///    this frame's predicted one added; once that sum reaches what a rebuild costs (its measured time, or
+///    `rebuild_ms`), the tree is rebuilt. This is the ski-rental rule: a rebuild is bought once refitting
+///    has cost as much, so the policy never pays much more than the better of always refitting and
+///    always rebuilding, at any resolution, without being told which. SAH predicts trace time only
+///    roughly (packets, caches and the scene's depth complexity do not follow it), so the model is
+///    checked after each such rebuild: the first traced frame of the fresh tree gives the saving
+///    actually measured against the one predicted, and their ratio (kept in [1/8, 1], averaged over
+///    rebuilds) scales every later loss estimate (`FrameReport::trust`).
+///  - `sah_growth`: rebuild when the refitted SAH exceeds `rebuild_threshold` times s_rebuilt (also the
+///    amortized rule's fallback while no trace time has been reported).
+/// A changed triangle count (topology), or a changed set of non-finite triangles (the builders leave
+/// those out, and refit cannot add them back), rebuilds at once under both rules.
 ///
 /// Asynchronous rebuild (Ize, Wald, Parker 2007, "Asynchronous BVH Construction for Ray Tracing
 /// Dynamic Scenes on Parallel Multi-Core Architectures"): with `async`, a rebuild runs on a background
@@ -25,6 +39,7 @@
 /// not synchronised with each other).
 #pragma once
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstddef>
@@ -64,6 +79,7 @@ enum class Reason : std::uint8_t {
     topology,      ///< the triangle count changed
     finiteness,    ///< the set of triangles with a NaN or infinite vertex changed
     sah_growth,    ///< the refitted SAH exceeded rebuild_threshold times the last rebuild's
+    amortized,     ///< the trace time lost to refitting since the last rebuild reached a rebuild's cost
     rebuild_ready, ///< swap: the background rebuild finished
 };
 
@@ -85,15 +101,36 @@ struct FrameReport {
     bool rebuild_started = false;
     /// Frame number, 0 for the first update().
     std::size_t frame = 0;
+    /// Amortized rule: trace time, in ms, the refitted tree is estimated to have lost against a fresh
+    /// one since the last rebuild, this frame's predicted loss included (0 without reported trace times).
+    double loss_ms = 0;
+    /// Amortized rule: what a rebuild is taken to cost, in ms (the last rebuild's measured time, or
+    /// DynamicConfig::rebuild_ms).
+    double rebuild_cost_ms = 0;
+    /// Amortized rule: the share of the SAH-predicted savings that rebuilds measurably delivered so far
+    /// (1 until a rebuild has been checked; in [1/8, 1]); it scales loss_ms.
+    double trust = 1;
+};
+
+/// How Dynamic decides to rebuild a refitted tree (see dynamic.hpp's file comment).
+enum class RebuildRule : std::uint8_t {
+    amortized,    ///< rebuild once the trace time lost to refitting reaches a rebuild's cost (default)
+    sah_growth,   ///< rebuild past rebuild_threshold times the last rebuild's SAH
 };
 
 /// Knobs of Dynamic. Designated-initialiser friendly: `{.rebuild_threshold = 1.5, .async = true}`.
 template <class BuilderConfig>
 struct DynamicConfig {
-    /// Rebuild when the refitted tree's SAH exceeds this many times the SAH right after the last rebuild.
-    /// 0 rebuilds every frame, +inf never rebuilds for SAH growth (always refit). Default 1.3.
+    /// The rule. Default amortized, which needs the caller's trace time each frame
+    /// (Dynamic::record_trace_ms); until the first one it applies sah_growth.
+    RebuildRule rule = RebuildRule::amortized;
+    /// sah_growth: rebuild when the refitted tree's SAH exceeds this many times the SAH right after the
+    /// last rebuild. 0 rebuilds every frame, +inf never rebuilds for SAH growth (always refit). Default 1.3.
     /// NaN or negative values are rejected (std::invalid_argument).
     double rebuild_threshold = 1.3;
+    /// amortized: what a rebuild costs, in ms. 0 (default): the measured wall time of the last rebuild
+    /// (build + SAH, on the calling thread or in the background). Negative or NaN: std::invalid_argument.
+    double rebuild_ms = 0;
     /// Rebuild on a background thread while refitted trees serve the frames (Ize et al. 2007). Default off.
     bool async = false;
     /// The builder's own knobs.
@@ -123,6 +160,9 @@ public:
         if (!(cfg.rebuild_threshold >= 0))
             throw std::invalid_argument("dynbvh::Dynamic: cfg.rebuild_threshold is " + std::to_string(cfg.rebuild_threshold) +
                                         "; it must be >= 0 (0 rebuilds every frame, +inf never)");
+        if (!(cfg.rebuild_ms >= 0))
+            throw std::invalid_argument("dynbvh::Dynamic: cfg.rebuild_ms is " + std::to_string(cfg.rebuild_ms) +
+                                        "; it must be >= 0 (0: the measured time of the last rebuild)");
     }
     /// Takes over `o`'s tree and its running background rebuild, if any.
     Dynamic(Dynamic&&) noexcept = default;
@@ -136,6 +176,14 @@ public:
             built_ = o.built_;
             sah_ = o.sah_;
             sah_rebuilt_ = o.sah_rebuilt_;
+            build_ms_ = o.build_ms_;
+            loss_ms_ = o.loss_ms_;
+            trace_ms_ = o.trace_ms_;
+            trace_sah_ = o.trace_sah_;
+            trust_ = o.trust_;
+            check_ = o.check_;
+            check_refit_ms_ = o.check_refit_ms_;
+            check_fresh_ms_ = o.check_fresh_ms_;
             excluded_ids_ = std::move(o.excluded_ids_);
             frame_ = o.frame_;
             job_ = std::move(o.job_);
@@ -158,6 +206,23 @@ public:
     template <class Index>
     FrameReport update(const MeshView<scalar_type, Index>& mesh) { return update_from(mesh); }
 
+    /// Tells the amortized rule how long the caller traced the current tree (the one the last update()
+    /// left) this frame, in ms; call it once per frame, after tracing. A negative, NaN or infinite `ms`
+    /// is ignored. It adds that frame's estimated loss, ms (1 - rebuild_sah() / sah()), to the sum the
+    /// rule compares.
+    void record_trace_ms(double ms) noexcept {
+        if (!(ms >= 0) || !std::isfinite(ms) || !built_) return;
+        if (check_) {
+            // Step: the first frame traced after an amortized rebuild: measured vs predicted saving.
+            const double predicted = check_refit_ms_ - check_fresh_ms_, measured = check_refit_ms_ - ms;
+            if (predicted > 0) trust_ = std::max(min_trust, 0.5 * trust_ + 0.5 * std::clamp(measured / predicted, 0.0, 1.0));
+            check_ = false;
+        }
+        trace_ms_ = ms;
+        trace_sah_ = sah_;
+        loss_ms_ += trust_ * lost(ms, sah_);
+    }
+
     /// The tree serving the current frame (empty before the first update()).
     const bvh_type& bvh() const noexcept { return tree_; }
     /// SAH of the current tree at the current frame.
@@ -179,6 +244,7 @@ private:
     struct Job {
         bvh_type tree;
         double sah = 0;
+        double ms = 0;   // build + SAH, wall clock
         std::vector<std::uint32_t> excluded_ids;
     };
     /// A background rebuild: its thread and its result slot (heap-allocated, so the policy may move).
@@ -190,7 +256,28 @@ private:
         std::exception_ptr error;         // guarded by mutex
     };
 
-    bool grown() const noexcept { return sah_ > cfg_.rebuild_threshold * sah_rebuilt_; }
+    /// The least trust in the SAH model, so that a tree degrading without bound is still rebuilt.
+    static constexpr double min_trust = 0.125;
+    /// Of `ms` traced with SAH `sah`, what a fresh tree (SAH sah_rebuilt_) would have saved.
+    double lost(double ms, double sah) const noexcept {
+        return sah > sah_rebuilt_ && sah > 0 ? ms * (1.0 - sah_rebuilt_ / sah) : 0.0;
+    }
+    double rebuild_cost() const noexcept { return cfg_.rebuild_ms > 0 ? cfg_.rebuild_ms : build_ms_; }
+    bool amortizing() const noexcept { return cfg_.rule == RebuildRule::amortized && trace_sah_ > 0; }
+    /// The rule on the refitted tree (sah_ current); r gets the reason and the amortized figures.
+    bool grown(FrameReport& r) const noexcept {
+        if (!amortizing()) {
+            r.reason = Reason::sah_growth;
+            return sah_ > cfg_.rebuild_threshold * sah_rebuilt_;
+        }
+        // This frame's loss predicted from the last traced frame's time, scaled by the SAH.
+        const double predicted = trust_ * lost(trace_ms_ * sah_ / trace_sah_, sah_);
+        r.loss_ms = loss_ms_ + predicted;
+        r.rebuild_cost_ms = rebuild_cost();
+        r.trust = trust_;
+        r.reason = Reason::amortized;
+        return r.loss_ms >= r.rebuild_cost_ms;
+    }
 
     /// update() over any triangle source (a span or a MeshView): one code path.
     template <class Source>
@@ -212,23 +299,36 @@ private:
             refit(tree_, tris, ex_);
             sah_rebuilt_ = job->sah;
             sah_ = sah_cost(tree_, cfg_.cost, ex_);
+            build_ms_ = job->ms;
+            loss_ms_ = 0;
             r.decision = Decision::swap;
+            FrameReport rule;
+            if (grown(rule)) start_background(tris, r);
             r.reason = Reason::rebuild_ready;
-            if (grown()) start_background(tris, r);
+            r.rebuild_cost_ms = rebuild_cost();
         } else {
             // Step: refit, then apply the rule.
             refit(tree_, tris, ex_);
             sah_ = sah_cost(tree_, cfg_.cost, ex_);
             r.sah_before = sah_;
-            if (grown()) {
-                r.reason = Reason::sah_growth;
+            if (grown(r)) {
                 if (cfg_.async) {
                     if (!job_) start_background(tris, r);
                     else r.reason = Reason::none;   // one is running already: keep refitting
                 } else {
+                    // What this frame's trace would take with the refitted tree, and with a fresh one
+                    // (by the SAH): checked against the measured time in record_trace_ms().
+                    const double refit_ms = trace_sah_ > 0 ? trace_ms_ * sah_ / trace_sah_ : 0;
                     rebuild_now(tris, std::move(bad));
                     r.decision = Decision::rebuild;
+                    if (r.reason == Reason::amortized) {
+                        check_ = true;
+                        check_refit_ms_ = refit_ms;
+                        check_fresh_ms_ = trace_ms_ * sah_ / trace_sah_;
+                    }
                 }
+            } else {
+                r.reason = Reason::none;
             }
         }
         r.sah_after = sah_;
@@ -237,24 +337,34 @@ private:
         return r;
     }
 
+    /// Triangle::is_finite without its nine branches (this scan runs every frame): x - x is +0 for a
+    /// finite x and NaN otherwise, and a sum with a NaN is NaN.
+    static bool finite(const triangle_type& t) noexcept {
+        const Vec3<scalar_type> z = (t.p0 - t.p0) + (t.p1 - t.p1) + (t.p2 - t.p2);
+        return (z.x == 0) & (z.y == 0) & (z.z == 0);
+    }
+
     /// Indices of the triangles with a NaN or infinite vertex, ascending (the builders exclude them).
     template <class Source>
     std::vector<std::uint32_t> nonfinite_ids(const Source tris) const {
         const std::size_t count = ex_.reduce(std::size_t(0), tris.size(), std::size_t(0),
-                                             [&](std::size_t i) { return tris[i].is_finite() ? std::size_t(0) : std::size_t(1); },
+                                             [&](std::size_t i) { return std::size_t(!finite(tris[i])); },
                                              [](std::size_t a, std::size_t b) { return a + b; });
         std::vector<std::uint32_t> ids;
         if (count == 0) return ids;
         ids.reserve(count);
         for (std::size_t i = 0; i < tris.size(); ++i)
-            if (!tris[i].is_finite()) ids.push_back(static_cast<std::uint32_t>(i));
+            if (!finite(tris[i])) ids.push_back(static_cast<std::uint32_t>(i));
         return ids;
     }
 
     template <class Source>
     void rebuild_now(const Source tris, std::vector<std::uint32_t> bad) {
+        const auto start = std::chrono::steady_clock::now();
         tree_ = Builder::template build<NodeT, Prim>(tris, cfg_.builder, ex_);
         sah_ = sah_rebuilt_ = sah_cost(tree_, cfg_.cost, ex_);
+        build_ms_ = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+        loss_ms_ = 0;
         excluded_ids_ = std::move(bad);
         built_ = true;
     }
@@ -272,9 +382,11 @@ private:
             std::optional<Job> job;
             std::exception_ptr error;
             try {
+                const auto start = std::chrono::steady_clock::now();
                 job.emplace();
                 job->tree = Builder::template build<NodeT, Prim>(std::span<const triangle_type>(copy), cfg.builder, ex);
                 job->sah = sah_cost(job->tree, cfg.cost, ex);
+                job->ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
                 job->excluded_ids = std::move(bad);
             } catch (...) {
                 error = std::current_exception();
@@ -315,6 +427,13 @@ private:
     bool built_ = false;
     double sah_ = 0;            // current tree, current frame
     double sah_rebuilt_ = 0;    // current tree right after its build
+    double build_ms_ = 0;       // amortized rule: the current tree's build time
+    double loss_ms_ = 0;        // amortized rule: trace time lost to refitting since that build
+    double trace_ms_ = 0;       // amortized rule: the last reported trace time ...
+    double trace_sah_ = 0;      // ... and the SAH of the tree it traced (0: none reported yet)
+    double trust_ = 1;          // amortized rule: share of predicted savings that rebuilds delivered
+    bool check_ = false;        // the next record_trace_ms() checks the last rebuild's saving ...
+    double check_refit_ms_ = 0, check_fresh_ms_ = 0;   // ... against these predictions
     std::vector<std::uint32_t> excluded_ids_;   // non-finite triangles of the current tree's build
     std::size_t frame_ = 0;
     std::unique_ptr<Background> job_;
