@@ -86,7 +86,9 @@ void check_packets(const WT& tree, std::span<const Trianglef> tris, std::span<co
 template <class Policy, class WT>
 void check_all_masks(const WT& tree, std::span<const Trianglef> tris, std::span<const Rayf> rays, std::uint64_t seed, Tally& t) {
     Rng rng(seed);
-    for (const unsigned min_rays : {0u, 2u, 3u, 6u, 17u})
+    // (the sanitized build checks memory and UB on two of the five min_rays values; the optimised one all)
+    const std::vector<unsigned> min_rays_values = test::sanitized() ? std::vector<unsigned>{0u, 3u} : std::vector<unsigned>{0u, 2u, 3u, 6u, 17u};
+    for (const unsigned min_rays : min_rays_values)
       for (const bool interval : {true, false}) {
         const PacketConfig cfg{.min_rays = min_rays, .interval = interval};
         check_packets<Policy, 8>(tree, tris, rays, [](std::size_t) { return ~std::uint32_t(0); }, cfg, t);
