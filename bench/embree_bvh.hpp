@@ -81,16 +81,8 @@ public:
         alignas(64) RH rh;
         alignas(64) int v[N];
         for (int k = 0; k < N; ++k) {
-            const Rayf& r = rays[k];
             v[k] = valid[k] ? -1 : 0;
-            rh.ray.org_x[k] = r.org.x; rh.ray.org_y[k] = r.org.y; rh.ray.org_z[k] = r.org.z;
-            rh.ray.dir_x[k] = r.dir.x; rh.ray.dir_y[k] = r.dir.y; rh.ray.dir_z[k] = r.dir.z;
-            rh.ray.tnear[k] = r.tmin;
-            rh.ray.tfar[k] = r.tmax;
-            rh.ray.time[k] = 0;
-            rh.ray.mask[k] = ~0u;
-            rh.ray.id[k] = 0;
-            rh.ray.flags[k] = 0;
+            fill_lane(rh.ray, k, rays[k]);
             rh.hit.geomID[k] = RTC_INVALID_GEOMETRY_ID;
             rh.hit.primID[k] = RTC_INVALID_GEOMETRY_ID;
         }
@@ -110,6 +102,25 @@ public:
             out[k] = h;
         }
     }
+    /// rtcOccluded8 / rtcOccluded16 on N rays: blocked[k] = whether active lane k hits anything (0 for
+    /// inactive lanes).
+    template <int N>
+    void occluded_packet(const Rayf* rays, const int* valid, std::uint8_t* blocked) const {
+        static_assert(N == 8 || N == 16, "Embree packets of 8 or 16 rays");
+        using R = std::conditional_t<N == 8, RTCRay8, RTCRay16>;
+        alignas(64) R ray;
+        alignas(64) int v[N];
+        for (int k = 0; k < N; ++k) {
+            v[k] = valid[k] ? -1 : 0;
+            fill_lane(ray, k, rays[k]);
+        }
+        RTCIntersectContext ctx;
+        rtcInitIntersectContext(&ctx);
+        ctx.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
+        if constexpr (N == 8) rtcOccluded8(v, scene_, &ctx, &ray);
+        else rtcOccluded16(v, scene_, &ctx, &ray);
+        for (int k = 0; k < N; ++k) blocked[k] = valid[k] && ray.tfar[k] < 0 ? 1 : 0;
+    }
     bool occluded(const Rayf& r) const {
         RTCIntersectContext ctx;
         rtcInitIntersectContext(&ctx);
@@ -121,6 +132,18 @@ public:
     EmbreeMode mode() const { return mode_; }
 
 private:
+    /// Lane k of an RTCRay8 / RTCRay16.
+    template <class RayN>
+    static void fill_lane(RayN& ray, int k, const Rayf& r) {
+        ray.org_x[k] = r.org.x; ray.org_y[k] = r.org.y; ray.org_z[k] = r.org.z;
+        ray.dir_x[k] = r.dir.x; ray.dir_y[k] = r.dir.y; ray.dir_z[k] = r.dir.z;
+        ray.tnear[k] = r.tmin;
+        ray.tfar[k] = r.tmax;
+        ray.time[k] = 0;
+        ray.mask[k] = ~0u;
+        ray.id[k] = 0;
+        ray.flags[k] = 0;
+    }
     static void fill(RTCRay& ray, const Rayf& r) {
         ray.org_x = r.org.x; ray.org_y = r.org.y; ray.org_z = r.org.z;
         ray.dir_x = r.dir.x; ray.dir_y = r.dir.y; ray.dir_z = r.dir.z;

@@ -16,11 +16,13 @@
 #include <numbers>
 #include <sstream>
 #include <string>
+#include <type_traits>
 #include <vector>
 
 #include <dynbvh/executor.hpp>
 #include <dynbvh/lbvh.hpp>
 #include <dynbvh/ploc.hpp>
+#include <dynbvh/wide_blocks.hpp>
 #include <scenes/builtin.hpp>
 
 using namespace dynbvh;
@@ -471,6 +473,62 @@ TEST_CASE("effects: the same image and counts whatever the executor or tracer") 
     CHECK(a.pixels == c.pixels);
 }
 
+namespace {
+/// A PacketTracer over a block tree that counts its packet calls.
+template <class Tree>
+struct CountingPacketTracer {
+    render::BvhTracer<trace::robust, Tree> inner;
+    std::size_t* closest_packets;
+    std::size_t* any_packets;
+    Hitf intersect(const Rayf& r) const { return inner.intersect(r); }
+    bool occluded(const Rayf& r) const { return inner.occluded(r); }
+    void intersect_packet(std::span<const Rayf> r, std::span<Hitf> out) const {
+        ++*closest_packets;
+        inner.intersect_packet(r, out);
+    }
+    void occluded_packet(std::span<const Rayf> r, std::span<std::uint8_t> out) const {
+        ++*any_packets;
+        inner.occluded_packet(r, out);
+    }
+};
+} // namespace
+
+TEST_CASE("effects: primary and shadow rays in packets give the single-ray image and counts") {
+    std::size_t shadow_rays = 0;
+    for (const char* name : {"funnel", "cloth-ball"}) {
+        CAPTURE(name);
+        auto scene = scenes::make_builtin(name, {.scale = 0.02});
+        io::Frame f;
+        scene->frame(10, f);
+        const auto bvh = lbvh::build(std::span<const Trianglef>(f.triangles));
+        const auto blocks = make_wide_blocks<8>(bvh, std::span<const Trianglef>(f.triangles));
+        static_assert(render::PacketTracer<decltype(render::bvh_tracer(blocks, f.triangles))>);
+        static_assert(!render::PacketTracer<decltype(render::bvh_tracer(bvh, f.triangles))>);   // binary: single rays
+        const Pinhole cam(f.camera.from, f.camera.at, f.camera.fov_y_deg, 37, 23);   // partial packets at row ends
+        const render::SceneView view = render::scene_view(f, scene->info());
+        const render::Config cfg{.batch_rays = 300, .chunk_rays = 40};   // chunks not a multiple of 16
+        render::Config single = cfg;
+        single.packets = false;
+        std::size_t closest = 0, any = 0;
+        const CountingPacketTracer<std::remove_cvref_t<decltype(blocks)>> counting{render::bvh_tracer(blocks, f.triangles), &closest, &any};
+        render::Image ref, packed, unpacked;
+        const render::Stats sr = render::render(render::bvh_tracer(bvh, f.triangles), view, cam, ref, cfg, exec::serial{});
+        const render::Stats sp = render::render(counting, view, cam, packed, cfg, exec::default_executor{});
+        const std::size_t packets_used = closest;
+        const render::Stats su = render::render(counting, view, cam, unpacked, single, exec::serial{});
+        CHECK(sr.rays == sp.rays);
+        CHECK(sr.rays == su.rays);
+        CHECK(ref.pixels == packed.pixels);
+        CHECK(ref.pixels == unpacked.pixels);
+        // primaries went in packets of <= 16 (each chunk of 40 in 3), shadow rays too where there are any
+        CHECK(packets_used >= sr.count(RayKind::primary) / 16);
+        CHECK(closest == packets_used);   // packets = false: no packet call
+        if (sr.count(RayKind::shadow) > 0) CHECK(any > 0);
+        shadow_rays += sr.count(RayKind::shadow);
+    }
+    CHECK(shadow_rays > 0);   // the shadow packets were exercised
+}
+
 #if defined(DYNBVH_STUDY_EXE)
 namespace {
 
@@ -505,12 +563,12 @@ TEST_CASE("effects: dynbvh-study --effects auto reports rays per kind; primary (
         REQUIRE(std::system(cmd.c_str()) == 0);
         const auto rows = read_csv(dir / "study.csv");
         REQUIRE(rows.size() == 5);   // header + 2 scenes x 2 builders x 1 frame
-        REQUIRE(rows[0].size() == 28);
+        REQUIRE(rows[0].size() == 30);
         CHECK(rows[0][14] == "rays_primary");
         CHECK(rows[0][17] == "rays_refraction");
         for (std::size_t i = 1; i < rows.size(); ++i) {
             const auto& r = rows[i];
-            REQUIRE(r.size() == 28);
+            REQUIRE(r.size() == 30);
             if (std::string(mode) == "primary") {
                 for (std::size_t k = 14; k < 23; ++k) CHECK(r[k].empty());
                 continue;

@@ -40,6 +40,12 @@
 /// is spread over the executor's `for_tasks` in chunks of consecutive rays (neighbouring pixels
 /// first, so secondary rays stay as coherent as the scene lets them). Results do not depend on the
 /// executor or thread count: queues are merged and pixels accumulated in a fixed order.
+///
+/// Packets: a `PacketTracer` (one that also answers up to 16 rays at once, with the answers of 16
+/// single rays) traces the coherent kinds, primary rays (16 consecutive pixels of a tile row) and
+/// shadow rays (neighbouring pixels' rays, towards the same light when the scene has one), 16 at a
+/// time (`Config::packets`); reflection and refraction rays, which scatter, go one at a time. The
+/// image and counts are the same either way.
 #pragma once
 
 #include <algorithm>
@@ -55,6 +61,7 @@
 
 #include <dynbvh/io/bart.hpp>
 #include <dynbvh/io/scene.hpp>
+#include <dynbvh/packet.hpp>
 #include <dynbvh/ray.hpp>
 #include <dynbvh/traverse.hpp>
 
@@ -69,6 +76,34 @@ concept Tracer = requires(const T& t, const Rayf& r) {
     { t.intersect(r) } -> std::convertible_to<Hitf>;
     { t.occluded(r) } -> std::convertible_to<bool>;
 };
+
+/// A Tracer that also answers rays.size() <= 16 rays at once: out[k] = intersect(rays[k]), resp.
+/// blocked[k] = occluded(rays[k]) (ray packets, e.g. dynbvh's packet.hpp or Embree's rtcIntersect16).
+template <class T>
+concept PacketTracer = Tracer<T> && requires(const T& t, std::span<const Rayf> r, std::span<Hitf> h, std::span<std::uint8_t> b) {
+    t.intersect_packet(r, h);
+    t.occluded_packet(r, b);
+};
+
+/// Up to 16 rays through one of our wide trees (`tree`, any wide or block tree) as one packet of
+/// packet.hpp: out[k] (resp. blocked[k]) = the single-ray answer for rays[k], bit for bit.
+template <class Policy, class Tree>
+void intersect_packet(const Tree& tree, std::span<const Trianglef> tris, std::span<const Rayf> rays, std::span<Hitf> out) {
+    RayPacket<float, 16> p;
+    const std::size_t n = std::min<std::size_t>(16, rays.size());
+    for (std::size_t k = 0; k < n; ++k) p.set(int(k), rays[k]);
+    const HitPacket<float, 16> h = dynbvh::intersect<Policy>(tree, tris, p, n >= 16 ? 0xffffu : (1u << n) - 1u);
+    for (std::size_t k = 0; k < n; ++k) out[k] = h.hit(int(k));
+}
+/// See intersect_packet.
+template <class Policy, class Tree>
+void occluded_packet(const Tree& tree, std::span<const Trianglef> tris, std::span<const Rayf> rays, std::span<std::uint8_t> blocked) {
+    RayPacket<float, 16> p;
+    const std::size_t n = std::min<std::size_t>(16, rays.size());
+    for (std::size_t k = 0; k < n; ++k) p.set(int(k), rays[k]);
+    const std::uint32_t m = dynbvh::occluded<Policy>(tree, tris, p, n >= 16 ? 0xffffu : (1u << n) - 1u);
+    for (std::size_t k = 0; k < n; ++k) blocked[k] = (m >> k) & 1u;
+}
 
 /// Primary rays: width() x height() pixels, ray(x, y) through pixel (x, y), row 0 at the top
 /// (the study's RayGen is one).
@@ -90,6 +125,15 @@ struct BvhTracer {
     std::span<const Trianglef> tris;
     Hitf intersect(const Rayf& r) const { return dynbvh::intersect<Policy>(bvh, tris, r); }
     bool occluded(const Rayf& r) const { return dynbvh::occluded<Policy>(bvh, tris, r); }
+    /// Wide trees only (packet.hpp): a PacketTracer.
+    void intersect_packet(std::span<const Rayf> r, std::span<Hitf> out) const requires requires { BvhT::node_type::width; }
+    {
+        render::intersect_packet<Policy>(bvh, tris, r, out);
+    }
+    void occluded_packet(std::span<const Rayf> r, std::span<std::uint8_t> out) const requires requires { BvhT::node_type::width; }
+    {
+        render::occluded_packet<Policy>(bvh, tris, r, out);
+    }
 };
 
 /// `render(bvh_tracer(bvh, tris), ...)`.
@@ -126,6 +170,7 @@ struct Config {
     bool refractions = true;                 ///< trace refraction rays where materials call for them
     std::size_t batch_rays = std::size_t(1) << 16;   ///< primary rays per wavefront batch (bounds the queues' memory)
     std::size_t chunk_rays = 256;            ///< consecutive rays per task
+    bool packets = true;                     ///< primary and shadow rays 16 at a time through a PacketTracer
 };
 
 /// Ray counts and times of one render, per RayKind (index with `int(kind)`).
@@ -367,22 +412,51 @@ inline void shade(const SceneView& scene, const Config& cfg, const PathRay& pr, 
 using clock = std::chrono::steady_clock;
 inline double ms_since(clock::time_point t0) { return std::chrono::duration<double, std::milli>(clock::now() - t0).count(); }
 
+/// Rays [i, e) of queue q (its entries' .ray) in packets of up to 16: trace(rays, first).
+template <class Q, class F>
+void for_each_packet(std::span<const Q> q, std::size_t i, std::size_t e, const F& trace) {
+    Rayf rays[16];
+    for (; i < e; i += 16) {
+        const std::size_t n = std::min<std::size_t>(16, e - i);
+        for (std::size_t k = 0; k < n; ++k) rays[k] = q[i + k].ray;
+        trace(std::span<const Rayf>(rays, n), i);
+    }
+}
+
+/// Closest hits of queue q; `coherent` (primary rays) goes in packets through a PacketTracer.
 template <class T, class Exec>
-void trace_closest(const T& tracer, std::span<const PathRay> q, std::vector<Hitf>& hits, const Config& cfg, const Exec& ex) {
+void trace_closest(const T& tracer, std::span<const PathRay> q, std::vector<Hitf>& hits, bool coherent, const Config& cfg, const Exec& ex) {
     hits.resize(q.size());
     const std::size_t chunk = std::max<std::size_t>(1, cfg.chunk_rays);
     ex.for_tasks((q.size() + chunk - 1) / chunk, [&](std::size_t k) {
         const std::size_t e = std::min(q.size(), (k + 1) * chunk);
+        if constexpr (PacketTracer<T>) {
+            if (coherent && cfg.packets) {
+                for_each_packet(q, k * chunk, e, [&](std::span<const Rayf> rays, std::size_t first) {
+                    tracer.intersect_packet(rays, std::span<Hitf>(hits.data() + first, rays.size()));
+                });
+                return;
+            }
+        }
         for (std::size_t i = k * chunk; i < e; ++i) hits[i] = tracer.intersect(q[i].ray);
     });
 }
 
+/// Shadow rays of queue q (in packets through a PacketTracer).
 template <class T, class Exec>
 void trace_any(const T& tracer, std::span<const ShadowRay> q, std::vector<std::uint8_t>& blocked, const Config& cfg, const Exec& ex) {
     blocked.resize(q.size());
     const std::size_t chunk = std::max<std::size_t>(1, cfg.chunk_rays);
     ex.for_tasks((q.size() + chunk - 1) / chunk, [&](std::size_t k) {
         const std::size_t e = std::min(q.size(), (k + 1) * chunk);
+        if constexpr (PacketTracer<T>) {
+            if (cfg.packets) {
+                for_each_packet(q, k * chunk, e, [&](std::span<const Rayf> rays, std::size_t first) {
+                    tracer.occluded_packet(rays, std::span<std::uint8_t>(blocked.data() + first, rays.size()));
+                });
+                return;
+            }
+        }
         for (std::size_t i = k * chunk; i < e; ++i) blocked[i] = tracer.occluded(q[i].ray) ? 1 : 0;
     });
 }
@@ -415,7 +489,7 @@ void run_paths(const T& tracer, const SceneView& scene, const Config& cfg, const
             if (q.empty()) continue;
             const RayKind kind = qi == 0 ? RayKind::primary : qi == 1 ? RayKind::reflection : RayKind::refraction;
             auto t0 = clock::now();
-            trace_closest(tracer, std::span<const PathRay>(q), w.hits, cfg, ex);
+            trace_closest(tracer, std::span<const PathRay>(q), w.hits, kind == RayKind::primary, cfg, ex);
             st.trace_ms[std::size_t(kind)] += ms_since(t0);
             st.rays[std::size_t(kind)] += q.size();
 

@@ -95,6 +95,12 @@ public:
     }
     Hitf intersect(std::span<const Trianglef> tris, const Rayf& r) const override { return current_.intersect(spec_, tris, r); }
     bool occluded(std::span<const Trianglef> tris, const Rayf& r) const override { return current_.occluded(spec_, tris, r); }
+    void intersect_packet(std::span<const Trianglef> tris, std::span<const Rayf> rays, std::span<Hitf> out) const override {
+        current_.intersect_packet(spec_, tris, rays, out);
+    }
+    void occluded_packet(std::span<const Trianglef> tris, std::span<const Rayf> rays, std::span<std::uint8_t> out) const override {
+        current_.occluded_packet(spec_, tris, rays, out);
+    }
 
 private:
     BuilderSpec spec_;

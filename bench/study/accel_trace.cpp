@@ -5,6 +5,7 @@
 #include <type_traits>
 
 #include <dynbvh/packet.hpp>
+#include <render/whitted.hpp>
 
 namespace dynbvh::study::accel_impl {
 
@@ -72,6 +73,32 @@ bool Trees<Prim>::occluded(const BuilderSpec& spec, std::span<const Trianglef> t
     });
 }
 
+template <class Prim>
+void Trees<Prim>::intersect_packet(const BuilderSpec& spec, std::span<const Trianglef> tris, std::span<const Rayf> rays,
+                                   std::span<Hitf> out) const {
+    with_policy(spec, [&]<class Policy>() {
+        with_tree(spec, *this, [&](const auto& tree) {
+            using Tree = std::remove_cvref_t<decltype(tree)>;
+            if constexpr (requires { Tree::width; }) {
+                if (spec.packets) return render::intersect_packet<Policy>(tree, tris, rays, out);
+            }
+            for (std::size_t k = 0; k < rays.size(); ++k) out[k] = dynbvh::intersect<Policy>(tree, tris, rays[k]);
+        });
+    });
+}
+template <class Prim>
+void Trees<Prim>::occluded_packet(const BuilderSpec& spec, std::span<const Trianglef> tris, std::span<const Rayf> rays,
+                                  std::span<std::uint8_t> out) const {
+    with_policy(spec, [&]<class Policy>() {
+        with_tree(spec, *this, [&](const auto& tree) {
+            using Tree = std::remove_cvref_t<decltype(tree)>;
+            if constexpr (requires { Tree::width; }) {
+                if (spec.packets) return render::occluded_packet<Policy>(tree, tris, rays, out);
+            }
+            for (std::size_t k = 0; k < rays.size(); ++k) out[k] = dynbvh::occluded<Policy>(tree, tris, rays[k]) ? 1 : 0;
+        });
+    });
+}
 template <class Prim>
 std::size_t Trees<Prim>::memory_bytes(const BuilderSpec& spec) const {
     return with_tree(spec, *this, [](const auto& tree) { return tree.memory_bytes(); });

@@ -291,8 +291,34 @@ public:
     std::optional<std::size_t> memory_bytes() const override { return std::nullopt; }
     Hitf intersect(std::span<const Trianglef>, const Rayf& r) const override { return bvh_.intersect(r); }
     bool occluded(std::span<const Trianglef>, const Rayf& r) const override { return bvh_.occluded(r); }
+    /// rtcIntersect16 / rtcOccluded16 when the study traces packets, else ray by ray.
+    void intersect_packet(std::span<const Trianglef> tris, std::span<const Rayf> rays, std::span<Hitf> out) const override {
+        if (!packets_) return Accel::intersect_packet(tris, rays, out);
+        Rayf r[16];
+        int valid[16];
+        Hitf h[16];
+        lanes16(rays, r, valid);
+        bvh_.intersect_packet<16>(r, valid, h);
+        std::copy_n(h, rays.size(), out.begin());
+    }
+    void occluded_packet(std::span<const Trianglef> tris, std::span<const Rayf> rays, std::span<std::uint8_t> out) const override {
+        if (!packets_) return Accel::occluded_packet(tris, rays, out);
+        Rayf r[16];
+        int valid[16];
+        std::uint8_t b[16];
+        lanes16(rays, r, valid);
+        bvh_.occluded_packet<16>(r, valid, b);
+        std::copy_n(b, rays.size(), out.begin());
+    }
 
 private:
+    /// rays (at most 16) as 16 lanes, the rest inactive.
+    static void lanes16(std::span<const Rayf> rays, Rayf* r, int* valid) {
+        for (std::size_t k = 0; k < 16; ++k) {
+            valid[k] = k < rays.size();
+            r[k] = valid[k] ? rays[k] : Rayf{};
+        }
+    }
     bench::EmbreeBvh bvh_;
     const Backend& backend_;
     bool packets_;

@@ -124,6 +124,15 @@ public:
         (void)r;
         throw std::logic_error("Accel::occluded: not implemented for this builder");
     }
+    /// Up to 16 rays at once (the renderer's primary and shadow rays): out[k] = intersect(tris, rays[k]),
+    /// as packets where the structure traces them (spec.packets: our wide trees, Embree's rtcIntersect16).
+    virtual void intersect_packet(std::span<const Trianglef> tris, std::span<const Rayf> rays, std::span<Hitf> out) const {
+        for (std::size_t k = 0; k < rays.size(); ++k) out[k] = intersect(tris, rays[k]);
+    }
+    /// Up to 16 rays at once: out[k] = occluded(tris, rays[k]) (rtcOccluded16 for Embree).
+    virtual void occluded_packet(std::span<const Trianglef> tris, std::span<const Rayf> rays, std::span<std::uint8_t> out) const {
+        for (std::size_t k = 0; k < rays.size(); ++k) out[k] = occluded(tris, rays[k]) ? 1 : 0;
+    }
 };
 
 /// An Accel and its frame's triangles as a render::Tracer (bench/render/whitted.hpp).
@@ -132,6 +141,8 @@ struct AccelTracer {
     std::span<const Trianglef> tris;
     Hitf intersect(const Rayf& r) const { return accel.intersect(tris, r); }
     bool occluded(const Rayf& r) const { return accel.occluded(tris, r); }
+    void intersect_packet(std::span<const Rayf> r, std::span<Hitf> out) const { accel.intersect_packet(tris, r, out); }
+    void occluded_packet(std::span<const Rayf> r, std::span<std::uint8_t> out) const { accel.occluded_packet(tris, r, out); }
 };
 
 /// Why `frame`'s objects cannot serve a two-level run (empty when they can): two-level needs at least two

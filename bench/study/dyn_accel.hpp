@@ -75,6 +75,11 @@ struct Trees {
                std::span<std::uint32_t> out) const;
     Hitf intersect(const BuilderSpec& spec, std::span<const Trianglef> tris, const Rayf& r) const;
     bool occluded(const BuilderSpec& spec, std::span<const Trianglef> tris, const Rayf& r) const;
+    /// Up to 16 rays at once (the renderer's primary and shadow rays): packets (packet.hpp) on wide
+    /// trees when spec.packets, else ray by ray; the answers of intersect / occluded either way.
+    void intersect_packet(const BuilderSpec& spec, std::span<const Trianglef> tris, std::span<const Rayf> rays, std::span<Hitf> out) const;
+    void occluded_packet(const BuilderSpec& spec, std::span<const Trianglef> tris, std::span<const Rayf> rays,
+                         std::span<std::uint8_t> out) const;
     /// Bytes of the traced tree.
     std::size_t memory_bytes(const BuilderSpec& spec) const;
 };
@@ -175,6 +180,12 @@ public:
     /// Single-ray queries (effect rays) go through the same tree as trace().
     Hitf intersect(std::span<const Trianglef> tris, const Rayf& r) const override { return current_.intersect(spec_, tris, r); }
     bool occluded(std::span<const Trianglef> tris, const Rayf& r) const override { return current_.occluded(spec_, tris, r); }
+    void intersect_packet(std::span<const Trianglef> tris, std::span<const Rayf> rays, std::span<Hitf> out) const override {
+        current_.intersect_packet(spec_, tris, rays, out);
+    }
+    void occluded_packet(std::span<const Trianglef> tris, std::span<const Rayf> rays, std::span<std::uint8_t> out) const override {
+        current_.occluded_packet(spec_, tris, rays, out);
+    }
 
 private:
     BuilderSpec spec_;

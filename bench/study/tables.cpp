@@ -259,8 +259,9 @@ std::vector<Table> effects_tables(const StudyResults& r) {
             }
         }
         if (t.rows.empty()) continue;
-        t.notes.push_back("Whitted renderer (bench/render/whitted.hpp) after the primary trace, single-ray closest-hit / any-hit "
-                          "queries through the same structure; each kind traced in its own passes and timed apart. Shadow rays only "
+        t.notes.push_back("Whitted renderer (bench/render/whitted.hpp) after the primary trace, closest-hit / any-hit queries "
+                          "through the same structure (primary and shadow rays in packets of 16 with --rays packet, the default; "
+                          "reflection and refraction rays one at a time); each kind traced in its own passes and timed apart. Shadow rays only "
                           "towards the scene's lights, reflection rays only from specular or transparent materials, refraction rays "
                           "only from transparent ones. shade = shading, ray generation and queues (not tracing).");
         v.push_back(t);
