@@ -506,15 +506,15 @@ TEST_CASE("effects: primary and shadow rays in packets give the single-ray image
         static_assert(!render::PacketTracer<decltype(render::bvh_tracer(bvh, f.triangles))>);   // binary: single rays
         const Pinhole cam(f.camera.from, f.camera.at, f.camera.fov_y_deg, 37, 23);   // partial packets at row ends
         const render::SceneView view = render::scene_view(f, scene->info());
-        const render::Config cfg{.batch_rays = 300, .chunk_rays = 40};   // chunks not a multiple of 16
+        const render::Config cfg{.batch_rays = 300, .chunk_rays = 40, .shadow_packets = true};   // chunks not a multiple of 16
         render::Config single = cfg;
-        single.packets = false;
+        single.packets = single.shadow_packets = false;
         std::size_t closest = 0, any = 0;
         const CountingPacketTracer<std::remove_cvref_t<decltype(blocks)>> counting{render::bvh_tracer(blocks, f.triangles), &closest, &any};
         render::Image ref, packed, unpacked;
         const render::Stats sr = render::render(render::bvh_tracer(bvh, f.triangles), view, cam, ref, cfg, exec::serial{});
         const render::Stats sp = render::render(counting, view, cam, packed, cfg, exec::default_executor{});
-        const std::size_t packets_used = closest;
+        const std::size_t packets_used = closest, shadow_packets_used = any;
         const render::Stats su = render::render(counting, view, cam, unpacked, single, exec::serial{});
         CHECK(sr.rays == sp.rays);
         CHECK(sr.rays == su.rays);
@@ -523,7 +523,8 @@ TEST_CASE("effects: primary and shadow rays in packets give the single-ray image
         // primaries went in packets of <= 16 (each chunk of 40 in 3), shadow rays too where there are any
         CHECK(packets_used >= sr.count(RayKind::primary) / 16);
         CHECK(closest == packets_used);   // packets = false: no packet call
-        if (sr.count(RayKind::shadow) > 0) CHECK(any > 0);
+        if (sr.count(RayKind::shadow) > 0) CHECK(shadow_packets_used > 0);
+        CHECK(any == shadow_packets_used);
         shadow_rays += sr.count(RayKind::shadow);
     }
     CHECK(shadow_rays > 0);   // the shadow packets were exercised

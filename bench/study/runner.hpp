@@ -67,8 +67,8 @@ private:
 using FrameHook = std::function<void(std::size_t k, const io::Frame& f, std::span<const std::uint32_t> prims)>;
 
 /// --effects auto: after each frame's primary trace, the frame is rendered Whitted-style
-/// (bench/render/whitted.hpp) through the same structure's queries (primary and shadow rays in packets
-/// of 16 with --rays packet, reflection and refraction rays one at a time); the counts and
+/// (bench/render/whitted.hpp) through the same structure's queries (primary rays in packets of 16 with
+/// --rays packet, shadow, reflection and refraction rays one at a time); the counts and
 /// times per kind go into FrameRecord::effects (build_ms and trace_ms are not affected).
 struct EffectsSetup {
     render::Config config;

@@ -260,7 +260,7 @@ std::vector<Table> effects_tables(const StudyResults& r) {
         }
         if (t.rows.empty()) continue;
         t.notes.push_back("Whitted renderer (bench/render/whitted.hpp) after the primary trace, closest-hit / any-hit queries "
-                          "through the same structure (primary and shadow rays in packets of 16 with --rays packet, the default; "
+                          "through the same structure (primary rays in packets of 16 with --rays packet, the default; shadow, "
                           "reflection and refraction rays one at a time); each kind traced in its own passes and timed apart. Shadow rays only "
                           "towards the scene's lights, reflection rays only from specular or transparent materials, refraction rays "
                           "only from transparent ones. shade = shading, ray generation and queues (not tracing).");
