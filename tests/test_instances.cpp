@@ -10,6 +10,7 @@
 #include <vector>
 
 #include <dynbvh/affine.hpp>
+#include <dynbvh/mesh.hpp>
 #include <dynbvh/two_level.hpp>
 
 using namespace dynbvh;
@@ -43,6 +44,14 @@ Affinef random_transform(Rng& r, Vec3f centre, float spread, bool mirror) {
     return a;
 }
 
+/// Object `object`'s triangles as the scene reads them (given as a span or a view).
+template <class Scene>
+std::vector<Trianglef> object_tris(const Scene& scene, std::uint32_t object) {
+    std::vector<Trianglef> t(scene.object_triangle_count(object));
+    for (std::size_t i = 0; i < t.size(); ++i) t[i] = scene.object_triangle(object, i);
+    return t;
+}
+
 /// The test's own reference: every instance in order, object_ray with the scene's inverse, every finite
 /// triangle with the watertight test, tmax narrowing.
 template <class Scene>
@@ -51,12 +60,13 @@ InstanceHit<float> reference(const Scene& scene, const Rayf& ray) {
     if (!traceable(ray)) return best;
     float tmax = ray.tmax;
     for (std::size_t k = 0; k < scene.instance_count(); ++k) {
-        const auto tris = scene.object_triangles(scene.instances()[k].object);
+        const std::uint32_t object = scene.instances()[k].object;
         Rayf r = object_ray(scene.inverse_transform(k), Rayf{ray.org, ray.dir, ray.tmin, tmax});
-        for (std::size_t i = 0; i < tris.size(); ++i) {
-            if (!tris[i].is_finite()) continue;
+        for (std::size_t i = 0; i < scene.object_triangle_count(object); ++i) {
+            const Trianglef tri = scene.object_triangle(object, i);
+            if (!tri.is_finite()) continue;
             r.tmax = tmax;
-            const Hitf h = intersect_triangle<tri::watertight>(tris[i], r);
+            const Hitf h = intersect_triangle<tri::watertight>(tri, r);
             if (h) {
                 best.t = h.t;
                 best.u = h.u;
@@ -79,7 +89,7 @@ bool same_instance_hit(const Scene& scene, const InstanceHit<float>& h, const In
     if (!same_bits(h.t, e.t)) return false;
     if (h.instance == e.instance && h.prim == e.prim) return same_bits(h.u, e.u) && same_bits(h.v, e.v);
     if (h.instance >= scene.instance_count()) return false;
-    const auto tris = scene.object_triangles(scene.instances()[h.instance].object);
+    const auto tris = object_tris(scene, scene.instances()[h.instance].object);
     if (h.prim >= tris.size()) return false;
     return same_bits(intersect_triangle<tri::watertight>(tris[h.prim], object_ray(scene.inverse_transform(h.instance), ray)).t, h.t);
 }
@@ -95,7 +105,7 @@ std::vector<Rayf> scene_rays(const Scene& scene, std::size_t n, std::uint64_t se
     for (std::size_t i = 0; i < n && !scene.top().empty(); ++i) {
         const std::uint32_t k = std::uint32_t(r.next() % scene.instance_count());
         const auto& inst = scene.instances()[k];
-        const auto tris = scene.object_triangles(inst.object);
+        const auto tris = object_tris(scene, inst.object);
         Vec3f target = inst.transform.point(Vec3f{});
         if (!tris.empty() && i % 8 >= 6) {
             // A vertex on the object's bounding box (the extreme one along a random axis): its hit lies on
@@ -364,6 +374,90 @@ TEST_CASE("TwoLevel: a deformed object is refitted (or rebuilt by its policy); o
     scene.commit();
     check_scene(scene, 62, "shrunk ball");
     CHECK(scene.object_bvh(1).nodes.data() == plane_nodes);
+}
+
+namespace {
+/// An indexed (n+1) x (n+1) vertex grid bent into a wave, 2 n^2 triangles sharing vertices.
+struct IndexedWave {
+    std::vector<Vec3f> vertices;
+    std::vector<std::uint32_t> indices;
+    std::vector<std::uint16_t> indices16;
+    IndexedWave(int n, float phase) {
+        for (int i = 0; i <= n; ++i)
+            for (int j = 0; j <= n; ++j)
+                vertices.push_back({float(i) / float(n), float(j) / float(n), 0.2f * std::sin(float(i + j) * 0.7f + phase)});
+        const auto at = [&](int i, int j) { return std::uint32_t(i * (n + 1) + j); };
+        for (int i = 0; i < n; ++i)
+            for (int j = 0; j < n; ++j)
+                for (std::uint32_t v : {at(i, j), at(i + 1, j), at(i + 1, j + 1), at(i, j), at(i + 1, j + 1), at(i, j + 1)}) {
+                    indices.push_back(v);
+                    indices16.push_back(std::uint16_t(v));
+                }
+    }
+    MeshView<float> view() const { return {std::span<const Vec3f>(vertices), std::span<const std::uint32_t>(indices)}; }
+    MeshView<float, std::uint16_t> view16() const {
+        return {std::span<const Vec3f>(vertices), std::span<const std::uint16_t>(indices16)};
+    }
+    std::vector<Trianglef> flat() const { return make_triangles(std::span<const Vec3f>(vertices), std::span<const std::uint32_t>(indices)); }
+};
+} // namespace
+
+TEST_CASE("TwoLevel: objects from mesh views trace as from their flattened triangles, bit for bit") {
+    IndexedWave wave(12, 0.0f), small(5, 1.0f);
+    const auto ball = sphere(8, 16);
+    using Scene = TwoLevel<builder::ploc, Node<>, prim::indexed, exec::serial>;
+    Scene viewed, flat;
+    CHECK(viewed.add_object(wave.view()) == 0);
+    CHECK(viewed.add_object(small.view16()) == 1);
+    CHECK(viewed.add_object(ball) == 2);   // spans and views mix
+    auto wave_tris = wave.flat();
+    const auto small_tris = small.flat();
+    flat.add_object(wave_tris);
+    flat.add_object(small_tris);
+    flat.add_object(ball);
+    CHECK(viewed.object_triangle_count(0) == wave_tris.size());
+    CHECK(viewed.object_triangle(1, 3).p2 == small_tris[3].p2);
+    CHECK_THROWS_WITH_AS(viewed.object_triangles(0), doctest::Contains("MeshView"), std::logic_error);
+    CHECK_THROWS_AS(viewed.object_triangle(1, small_tris.size()), std::invalid_argument);
+    const auto same_trees = [&] {
+        for (std::uint32_t o = 0; o < 3; ++o) {
+            CHECK(viewed.object_bvh(o).nodes.size() == flat.object_bvh(o).nodes.size());
+            CHECK(viewed.object_bvh(o).prim_ids == flat.object_bvh(o).prim_ids);
+        }
+    };
+    same_trees();
+    const auto instances = random_instances(flat, 20, 71, {0, 0, 0}, 4);
+    viewed.set_instances(instances);
+    flat.set_instances(instances);
+    viewed.commit();
+    flat.commit();
+    const auto compare = [&](std::uint64_t seed, const std::string& what) {
+        std::size_t differ = 0;
+        for (const Rayf& ray : scene_rays(flat, sanitizer_scaled(300), seed)) {
+            const InstanceHit<float> a = viewed.intersect(ray), b = flat.intersect(ray);
+            const bool same = a.instance == b.instance && a.prim == b.prim && same_bits(a.t, b.t) && same_bits(a.u, b.u) &&
+                              same_bits(a.v, b.v) && viewed.occluded(ray) == flat.occluded(ray);
+            differ += !same;
+        }
+        CHECK_MESSAGE(differ == 0, what, ": ", differ, " rays differ between the view and the span scene");
+        check_scene(viewed, seed + 1, what + " (views)");
+    };
+    compare(80, "views");
+    // The wave moves in place: both refit (or rebuild) alike.
+    for (Vec3f& v : wave.vertices) v.z += 0.05f * v.x;
+    wave_tris = wave.flat();
+    const FrameReport rv = viewed.update_object(0, wave.view());
+    const FrameReport rf = flat.update_object(0, std::span<const Trianglef>(wave_tris));
+    CHECK(rv.decision == rf.decision);
+    same_trees();
+    viewed.commit();
+    flat.commit();
+    compare(90, "moved wave");
+    // An object may switch from a view to a span.
+    viewed.update_object(1, std::span<const Trianglef>(small_tris));
+    CHECK(viewed.object_triangles(1).size() == small_tris.size());
+    viewed.commit();
+    compare(95, "view then span");
 }
 
 TEST_CASE("TwoLevel: empty scenes, empty objects") {

@@ -238,40 +238,67 @@ bool occluded(const Bvh<NodeT, Prim>& bvh, const MeshView<typename NodeT::scalar
     return static_cast<bool>(detail::traverse<Policy, true>(bvh, mesh, ray));
 }
 
-/// Reference closest hit: every finite triangle is tested with `Policy`'s triangle test (O(n) per ray).
-/// Same interval and tie rule as `intersect` (at exactly the same t the larger triangle index wins:
-/// here a later triangle replaces the earlier).
-/// Triangles with a NaN or infinite vertex are skipped, as the builders exclude them.
-template <class Policy = trace::robust, class T>
-Hit<T> brute_force_intersect(std::type_identity_t<std::span<const Triangle<T>>> tris, const Ray<T>& ray) {
+namespace detail {
+/// Brute force over any triangle source (a span or a MeshView): one code path.
+template <class Policy, class T, class Source>
+Hit<T> brute_force_intersect_over(const Source tris, const Ray<T>& ray) {
     using Tri = typename Policy::triangle_test;
     Hit<T> hit;
     if (!traceable(ray)) return hit;
     const typename Tri::template prepared<T> pt(ray);
     T tmax = ray.tmax;
     for (std::size_t i = 0; i < tris.size(); ++i) {
-        if (!tris[i].is_finite()) continue;
+        const Triangle<T> tri = tris[i];
+        if (!tri.is_finite()) continue;
         T t, u, v;
-        if (Tri::test(pt, tris[i], tmax, t, u, v)) {   // (t == tmax: i is larger, so it wins the tie)
+        if (Tri::test(pt, tri, tmax, t, u, v)) {   // (t == tmax: i is larger, so it wins the tie)
             tmax = t;
             hit = {t, u, v, static_cast<std::uint32_t>(i)};
         }
     }
     return hit;
 }
-
-/// Reference any hit: whether some finite triangle is hit within [tmin, tmax] (O(n) per ray).
-template <class Policy = trace::robust, class T>
-bool brute_force_occluded(std::type_identity_t<std::span<const Triangle<T>>> tris, const Ray<T>& ray) {
+template <class Policy, class T, class Source>
+bool brute_force_occluded_over(const Source tris, const Ray<T>& ray) {
     using Tri = typename Policy::triangle_test;
     if (!traceable(ray)) return false;
     const typename Tri::template prepared<T> pt(ray);
-    for (const Triangle<T>& tri : tris) {
+    for (std::size_t i = 0; i < tris.size(); ++i) {
+        const Triangle<T> tri = tris[i];
         if (!tri.is_finite()) continue;
         T t, u, v;
         if (Tri::test(pt, tri, ray.tmax, t, u, v)) return true;
     }
     return false;
+}
+} // namespace detail
+
+/// Reference closest hit: every finite triangle is tested with `Policy`'s triangle test (O(n) per ray).
+/// Same interval and tie rule as `intersect` (at exactly the same t the larger triangle index wins:
+/// here a later triangle replaces the earlier).
+/// Triangles with a NaN or infinite vertex are skipped, as the builders exclude them.
+template <class Policy = trace::robust, class T>
+Hit<T> brute_force_intersect(std::type_identity_t<std::span<const Triangle<T>>> tris, const Ray<T>& ray) {
+    return detail::brute_force_intersect_over<Policy>(tris, ray);
+}
+
+/// Reference any hit: whether some finite triangle is hit within [tmin, tmax] (O(n) per ray).
+template <class Policy = trace::robust, class T>
+bool brute_force_occluded(std::type_identity_t<std::span<const Triangle<T>>> tris, const Ray<T>& ray) {
+    return detail::brute_force_occluded_over<Policy>(tris, ray);
+}
+
+/// Reference closest hit over an indexed mesh read in place (mesh.hpp): what the span of
+/// make_triangles(vertices, indices) gives, bit for bit (O(n) per ray).
+template <class Policy = trace::robust, class T, class Index>
+Hit<T> brute_force_intersect(const MeshView<T, Index>& mesh, const std::type_identity_t<Ray<T>>& ray) {
+    return detail::brute_force_intersect_over<Policy>(mesh, ray);
+}
+
+/// Reference any hit over an indexed mesh read in place (O(n) per ray).
+template <class Policy = trace::robust, class T, class Index>
+bool brute_force_occluded(const MeshView<T, Index>& mesh, const std::type_identity_t<Ray<T>>& ray) {
+    return detail::brute_force_occluded_over<Policy>(mesh, ray);
 }
 
 } // namespace dynbvh

@@ -16,8 +16,9 @@
 /// @endcode
 /// Objects: each is a Dynamic policy (dynamic.hpp) over the user's triangle array for that object, so
 /// a rigid object's tree is built once and reused, and a deformed one is refitted or rebuilt by the
-/// policy's SAH rule. The scene keeps a span of each object's triangles (the user keeps the array
-/// alive and unchanged until the next update_object), like every prim::indexed tree.
+/// policy's SAH rule. The scene keeps a span of each object's triangles, or its MeshView (mesh.hpp:
+/// an indexed mesh read in place, 16- or 32-bit indices); the user keeps the array alive and
+/// unchanged until the next update_object, like every prim::indexed tree.
 ///
 /// Top level: rebuilt by commit() with the same builder policy, over one reference per instance whose
 /// box is the instance's (padded, see below) world box: the builders' `build_tree` over prepared
@@ -72,6 +73,7 @@
 #include "detail/emit.hpp"
 #include "detail/references.hpp"
 #include "dynamic.hpp"
+#include "mesh.hpp"
 #include "executor.hpp"
 #include "traverse.hpp"
 #include "traverse_wide.hpp"
@@ -139,29 +141,20 @@ public:
 
     /// Adds an object over the user's triangles `tris` (kept as a span, see the file comment) and builds
     /// its tree. Returns its id (0, 1, ...). O(build).
-    std::uint32_t add_object(std::span<const triangle_type> tris) {
-        if (objects_.size() >= std::size_t(invalid_prim))
-            throw std::length_error("dynbvh::TwoLevel::add_object: too many objects");
-        Object o{object_policy(cfg_.objects, ex_), tris, {}};
-        o.policy.update(tris);
-        retrace(o);
-        objects_.push_back(std::move(o));
-        dirty_ = true;
-        return static_cast<std::uint32_t>(objects_.size() - 1);
-    }
+    std::uint32_t add_object(std::span<const triangle_type> tris) { return add(tris); }
+    /// The same over an indexed mesh read in place (kept as a view; no copy of its triangles): the
+    /// tree and answers the span of make_triangles(vertices, indices) would give, bit for bit.
+    template <class Index>
+    std::uint32_t add_object(const MeshView<scalar_type, Index>& mesh) { return add(mesh); }
 
     /// Object `object` deformed: its triangles are now `tris` (any count; a new count rebuilds). The
     /// object's policy refits or rebuilds (dynamic.hpp) and says which. Call commit() before tracing.
     /// Throws std::invalid_argument when `object` is not an object id.
-    FrameReport update_object(std::uint32_t object, std::span<const triangle_type> tris) {
-        check_object(object, "update_object", "object");
-        Object& o = objects_[object];
-        FrameReport r = o.policy.update(tris);
-        o.tris = tris;
-        retrace(o);
-        dirty_ = true;
-        return r;
-    }
+    FrameReport update_object(std::uint32_t object, std::span<const triangle_type> tris) { return update(object, tris); }
+    /// The same over an indexed mesh read in place (typically the object's view after its vertices
+    /// moved); an object may switch between spans and views.
+    template <class Index>
+    FrameReport update_object(std::uint32_t object, const MeshView<scalar_type, Index>& mesh) { return update(object, mesh); }
 
     /// Replaces the instances. Each must name an object (instances[i].object < object_count()) and have
     /// a finite, invertible transform (see dynbvh::inverse); otherwise std::invalid_argument naming
@@ -262,7 +255,8 @@ public:
         scalar_type tmax = ray.tmax;
         for (std::size_t k = 0; k < instances_.size(); ++k) {
             const Ray<scalar_type> r = object_ray(inverses_[k], Ray<scalar_type>{ray.org, ray.dir, ray.tmin, tmax});
-            const Hit<scalar_type> h = dynbvh::brute_force_intersect<Policy, scalar_type>(objects_[instances_[k].object].tris, r);
+            const Hit<scalar_type> h = objects_[instances_[k].object].visit(
+                [&](const auto& tris) { return dynbvh::brute_force_intersect<Policy>(tris, r); });
             if (h) {
                 static_cast<Hit<scalar_type>&>(best) = h;
                 best.instance = static_cast<std::uint32_t>(k);
@@ -276,8 +270,8 @@ public:
     bool brute_force_occluded(const Ray<scalar_type>& ray) const {
         if (!traceable(ray)) return false;
         for (std::size_t k = 0; k < instances_.size(); ++k)
-            if (dynbvh::brute_force_occluded<Policy, scalar_type>(objects_[instances_[k].object].tris,
-                                                                 object_ray(inverses_[k], ray)))
+            if (objects_[instances_[k].object].visit(
+                    [&](const auto& tris) { return dynbvh::brute_force_occluded<Policy>(tris, object_ray(inverses_[k], ray)); }))
                 return true;
         return false;
     }
@@ -291,10 +285,31 @@ public:
         check_object(object, "object_bvh", "object");
         return objects_[object].policy.bvh();
     }
-    /// Object `object`'s triangles as last given.
+    /// Object `object`'s triangles as last given as a span. Throws std::invalid_argument for a bad id,
+    /// std::logic_error for an object last given as a MeshView (see object_triangle).
     std::span<const triangle_type> object_triangles(std::uint32_t object) const {
         check_object(object, "object_triangles", "object");
-        return objects_[object].tris;
+        const Object& o = objects_[object];
+        if (o.view_index_bits != 0)
+            throw std::logic_error("dynbvh::TwoLevel::object_triangles: object " + std::to_string(object) +
+                                   " was given as a MeshView; read it with object_triangle_count / object_triangle");
+        return o.tris;
+    }
+    /// Number of triangles of object `object` as last given (span or view).
+    std::size_t object_triangle_count(std::uint32_t object) const {
+        check_object(object, "object_triangle_count", "object");
+        return objects_[object].visit([](const auto& tris) { return tris.size(); });
+    }
+    /// Triangle i of object `object` as last given (span or view), by value. Throws std::invalid_argument
+    /// for a bad id or i.
+    triangle_type object_triangle(std::uint32_t object, std::size_t i) const {
+        check_object(object, "object_triangle", "object");
+        return objects_[object].visit([&](const auto& tris) -> triangle_type {
+            if (i >= tris.size())
+                throw std::invalid_argument("dynbvh::TwoLevel::object_triangle: i is " + std::to_string(i) + " but object " +
+                                            std::to_string(object) + " has " + std::to_string(tris.size()) + " triangles");
+            return tris[i];
+        });
     }
     /// The instances as last given (with the latest transforms).
     std::span<const Instance<scalar_type>> instances() const noexcept { return instances_; }
@@ -306,15 +321,67 @@ public:
     bool committed() const noexcept { return !dirty_; }
 
 private:
+    /// An object: its policy, its triangles as a span or a view (view_index_bits 16 or 32; 0: span), and
+    /// its traced tree.
     struct Object {
         object_policy policy;
         std::span<const triangle_type> tris;
+        MeshView<scalar_type, std::uint16_t> view16;
+        MeshView<scalar_type, std::uint32_t> view32;
+        int view_index_bits = 0;
         object_traced_type traced;   ///< policy.bvh() in the traced layout, remade after every update
+
+        /// f(the object's triangle source): the span or the view.
+        template <class F>
+        decltype(auto) visit(const F& f) const {
+            if (view_index_bits == 16) return f(view16);
+            if (view_index_bits == 32) return f(view32);
+            return f(tris);
+        }
+        void set(std::span<const triangle_type> t) {
+            tris = t;
+            view_index_bits = 0;
+        }
+        void set(const MeshView<scalar_type, std::uint16_t>& m) {
+            view16 = m;
+            tris = {};
+            view_index_bits = 16;
+        }
+        void set(const MeshView<scalar_type, std::uint32_t>& m) {
+            view32 = m;
+            tris = {};
+            view_index_bits = 32;
+        }
     };
     /// Remakes o.traced from the object's tree (once for a rigid object; per update for a deformed one).
     void retrace(Object& o) {
-        if constexpr (std::is_same_v<typename NodeT::scalar_type, float>) o.traced = make_wide_blocks<8>(o.policy.bvh(), o.tris, ex_);
+        if constexpr (std::is_same_v<typename NodeT::scalar_type, float>)
+            o.traced = o.visit([&](const auto& tris) { return make_wide_blocks<8>(o.policy.bvh(), tris, ex_); });
         else o.traced = make_wide<8>(o.policy.bvh(), ex_);
+    }
+    /// add_object over a span or a view.
+    template <class Source>
+    std::uint32_t add(const Source& tris) {
+        if (objects_.size() >= std::size_t(invalid_prim))
+            throw std::length_error("dynbvh::TwoLevel::add_object: too many objects");
+        Object o{object_policy(cfg_.objects, ex_), {}, {}, {}, 0, {}};
+        o.policy.update(tris);
+        o.set(tris);
+        retrace(o);
+        objects_.push_back(std::move(o));
+        dirty_ = true;
+        return static_cast<std::uint32_t>(objects_.size() - 1);
+    }
+    /// update_object over a span or a view.
+    template <class Source>
+    FrameReport update(std::uint32_t object, const Source& tris) {
+        check_object(object, "update_object", "object");
+        Object& o = objects_[object];
+        FrameReport r = o.policy.update(tris);
+        o.set(tris);
+        retrace(o);
+        dirty_ = true;
+        return r;
     }
     struct Entry {
         typename NodeT::index_type node;
@@ -398,12 +465,12 @@ private:
         const Object& obj = objects_[instances_[k].object];
         const Ray<scalar_type> r = object_ray(inverses_[k], Ray<scalar_type>{ray.org, ray.dir, ray.tmin, tmax});
         if constexpr (AnyHit) {
-            if (!dynbvh::occluded<Policy>(obj.traced, obj.tris, r)) return false;
+            if (!obj.visit([&](const auto& tris) { return dynbvh::occluded<Policy>(obj.traced, tris, r); })) return false;
             best.prim = 0;
             best.instance = k;
             return true;
         } else {
-            const Hit<scalar_type> h = dynbvh::intersect<Policy>(obj.traced, obj.tris, r);
+            const Hit<scalar_type> h = obj.visit([&](const auto& tris) { return dynbvh::intersect<Policy>(obj.traced, tris, r); });
             if (h) {
                 static_cast<Hit<scalar_type>&>(best) = h;
                 best.instance = k;
