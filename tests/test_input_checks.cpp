@@ -41,7 +41,7 @@ std::string thrown(F&& f) {
 void check_message(const std::string& what, const char* fn, std::size_t given, std::size_t built) {
     INFO(what);
     CHECK(what.find(std::string("dynbvh::") + fn + ":") == 0);
-    CHECK(what.find("has " + std::to_string(given) + " triangles") != std::string::npos);
+    CHECK(what.find(": " + std::to_string(given) + " triangles were passed") != std::string::npos);
     CHECK(what.find("primitive_count is " + std::to_string(built)) != std::string::npos);
 }
 

@@ -16,9 +16,9 @@ namespace dynbvh::detail {
 template <class Tree>
 std::string triangle_mismatch(const Tree& tree, std::size_t given, const char* fn) {
     if (given == tree.primitive_count) return {};
-    return std::string("dynbvh::") + fn + ": the triangle span has " + std::to_string(given) +
-           " triangles but the tree was built over " + std::to_string(tree.primitive_count) +
-           " (primitive_count is " + std::to_string(tree.primitive_count) + "; pass the array it was built over)";
+    return std::string("dynbvh::") + fn + ": " + std::to_string(given) + " triangles were passed (span or mesh view)" +
+           " but the tree was built over " + std::to_string(tree.primitive_count) +
+           " (primitive_count is " + std::to_string(tree.primitive_count) + "; pass the triangles it was built over)";
 }
 
 /// Throws std::invalid_argument with triangle_mismatch's message when `given` does not fit `tree`.
