@@ -80,15 +80,12 @@ public:
         using RH = std::conditional_t<N == 8, RTCRayHit8, RTCRayHit16>;
         alignas(64) RH rh;
         alignas(64) int v[N];
+        fill_lanes<N>(rh.ray, rays, valid, v);
         for (int k = 0; k < N; ++k) {
-            v[k] = valid[k] ? -1 : 0;
-            fill_lane(rh.ray, k, rays[k]);
             rh.hit.geomID[k] = RTC_INVALID_GEOMETRY_ID;
             rh.hit.primID[k] = RTC_INVALID_GEOMETRY_ID;
         }
-        RTCIntersectContext ctx;
-        rtcInitIntersectContext(&ctx);
-        ctx.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
+        RTCIntersectContext ctx = coherent_context();
         if constexpr (N == 8) rtcIntersect8(v, scene_, &ctx, &rh);
         else rtcIntersect16(v, scene_, &ctx, &rh);
         for (int k = 0; k < N; ++k) {
@@ -110,13 +107,8 @@ public:
         using R = std::conditional_t<N == 8, RTCRay8, RTCRay16>;
         alignas(64) R ray;
         alignas(64) int v[N];
-        for (int k = 0; k < N; ++k) {
-            v[k] = valid[k] ? -1 : 0;
-            fill_lane(ray, k, rays[k]);
-        }
-        RTCIntersectContext ctx;
-        rtcInitIntersectContext(&ctx);
-        ctx.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
+        fill_lanes<N>(ray, rays, valid, v);
+        RTCIntersectContext ctx = coherent_context();
         if constexpr (N == 8) rtcOccluded8(v, scene_, &ctx, &ray);
         else rtcOccluded16(v, scene_, &ctx, &ray);
         for (int k = 0; k < N; ++k) blocked[k] = valid[k] && ray.tfar[k] < 0 ? 1 : 0;
@@ -132,17 +124,28 @@ public:
     EmbreeMode mode() const { return mode_; }
 
 private:
-    /// Lane k of an RTCRay8 / RTCRay16.
-    template <class RayN>
-    static void fill_lane(RayN& ray, int k, const Rayf& r) {
-        ray.org_x[k] = r.org.x; ray.org_y[k] = r.org.y; ray.org_z[k] = r.org.z;
-        ray.dir_x[k] = r.dir.x; ray.dir_y[k] = r.dir.y; ray.dir_z[k] = r.dir.z;
-        ray.tnear[k] = r.tmin;
-        ray.tfar[k] = r.tmax;
-        ray.time[k] = 0;
-        ray.mask[k] = ~0u;
-        ray.id[k] = 0;
-        ray.flags[k] = 0;
+    /// The N lanes of an RTCRay8 / RTCRay16 from rays[], and Embree's lane mask v[] from valid[].
+    template <int N, class RayN>
+    static void fill_lanes(RayN& ray, const Rayf* rays, const int* valid, int* v) {
+        for (int k = 0; k < N; ++k) {
+            const Rayf& r = rays[k];
+            v[k] = valid[k] ? -1 : 0;
+            ray.org_x[k] = r.org.x; ray.org_y[k] = r.org.y; ray.org_z[k] = r.org.z;
+            ray.dir_x[k] = r.dir.x; ray.dir_y[k] = r.dir.y; ray.dir_z[k] = r.dir.z;
+            ray.tnear[k] = r.tmin;
+            ray.tfar[k] = r.tmax;
+            ray.time[k] = 0;
+            ray.mask[k] = ~0u;
+            ray.id[k] = 0;
+            ray.flags[k] = 0;
+        }
+    }
+    /// A context for coherent packets (primary rays of a tile).
+    static RTCIntersectContext coherent_context() {
+        RTCIntersectContext ctx;
+        rtcInitIntersectContext(&ctx);
+        ctx.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
+        return ctx;
     }
     static void fill(RTCRay& ray, const Rayf& r) {
         ray.org_x = r.org.x; ray.org_y = r.org.y; ray.org_z = r.org.z;

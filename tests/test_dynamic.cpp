@@ -74,6 +74,26 @@ void check_exact(const Tree& bvh, const std::vector<Trianglef>& tris, std::uint6
     CHECK(hits > 0);
 }
 
+/// Applies the expected decision `want` to the test's own tree `mine` (a PLOC rebuild, or nothing: it
+/// was refitted already) and checks the policy's report against it; `why` = the reason of a rebuild
+/// after frame 0.
+void expect_decision(const FrameReport& r, Decision want, Reason why, int f, std::span<const Trianglef> s, Bvh<>& mine,
+                     double& rebuilt_sah, int& rebuilds, int& refits) {
+    const exec::serial ex;
+    if (want == Decision::rebuild) {
+        mine = ploc::build<Node<>, prim::indexed>(s, {}, ex);
+        rebuilt_sah = sah_cost(mine, {}, ex);
+        ++rebuilds;
+        if (f > 0) CHECK(r.reason == why);
+    } else {
+        ++refits;
+        CHECK(r.reason == Reason::none);
+    }
+    CHECK(r.decision == want);
+    CHECK(same_bits(r.sah_after, sah_cost(mine, {}, ex)));
+    CHECK(same_bits(r.sah_rebuilt, rebuilt_sah));
+}
+
 } // namespace
 
 TEST_CASE("Dynamic: rebuilds exactly when the refitted SAH exceeds the threshold times the last rebuild's") {
@@ -102,18 +122,7 @@ TEST_CASE("Dynamic: rebuilds exactly when the refitted SAH exceeds the threshold
             if (before > 1.3 * rebuilt_sah) want = Decision::rebuild;
             CHECK(same_bits(r.sah_before, before));
         }
-        if (want == Decision::rebuild) {
-            mine = ploc::build<Node<>, prim::indexed>(s, {}, ex);
-            rebuilt_sah = sah_cost(mine, {}, ex);
-            ++rebuilds;
-            if (f > 0) CHECK(r.reason == Reason::sah_growth);
-        } else {
-            ++refits;
-            CHECK(r.reason == Reason::none);
-        }
-        CHECK(r.decision == want);
-        CHECK(same_bits(r.sah_after, sah_cost(mine, {}, ex)));
-        CHECK(same_bits(r.sah_rebuilt, rebuilt_sah));
+        expect_decision(r, want, Reason::sah_growth, f, s, mine, rebuilt_sah, rebuilds, refits);
         CHECK(dyn.bvh().nodes.size() == mine.nodes.size());
         CHECK(r.ms >= 0);
         CHECK(structure_problems(dyn.bvh(), tris) == "");
@@ -160,20 +169,11 @@ TEST_CASE("Dynamic: the amortized rule rebuilds exactly when the estimated trace
                 check_refit = prev_ms * now / prev_sah;
             }
         }
+        expect_decision(r, want, Reason::amortized, f, s, mine, rebuilt_sah, rebuilds, refits);
         if (want == Decision::rebuild) {
-            mine = ploc::build<Node<>, prim::indexed>(s, {}, ex);
-            rebuilt_sah = sah_cost(mine, {}, ex);
             if (f > 0) check_fresh = prev_ms * rebuilt_sah / prev_sah;
             loss = 0;
-            ++rebuilds;
-            if (f > 0) CHECK(r.reason == Reason::amortized);
-        } else {
-            ++refits;
-            CHECK(r.reason == Reason::none);
         }
-        CHECK(r.decision == want);
-        CHECK(same_bits(r.sah_after, sah_cost(mine, {}, ex)));
-        CHECK(same_bits(r.sah_rebuilt, rebuilt_sah));
         // the caller traces, then reports
         check_exact(dyn.bvh(), tris, 300 + std::uint64_t(f), "frame " + std::to_string(f));
         dyn.record_trace_ms(trace_ms[f]);
