@@ -169,10 +169,16 @@ Sorted<Key> sort_triangles(Source tris, const Exec& ex) {
     constexpr Key beyond = Key(1) << morton::code_bits<Key>;
     out.keys.resize(n);
     Key* keys = out.keys.data();
-    ex.for_each(0, n, [&](std::size_t i) {
-        const Triangle<T>& t = tris[i];
-        keys[i] = finite_triangle(t) ? morton::encode<Key>(q, triangle_box(t).center()) : beyond;
-    });
+    if (acc.bad == 0)   // (the common case: no test per triangle)
+        ex.for_each(0, n, [&](std::size_t i) {
+            const Triangle<T>& t = tris[i];
+            keys[i] = morton::encode<Key>(q, triangle_box(t).center());
+        });
+    else
+        ex.for_each(0, n, [&](std::size_t i) {
+            const Triangle<T>& t = tris[i];
+            keys[i] = finite_triangle(t) ? morton::encode<Key>(q, triangle_box(t).center()) : beyond;
+        });
     // Step 3: sort (the original positions are the triangle ids), cut the non-finite tail.
     out.prim = radix_sort_order(out.keys, ex, morton::code_bits<Key> + (acc.bad != 0 ? 1 : 0));
     out.keys.resize(n - acc.bad);
