@@ -3,7 +3,7 @@
 // a ~92k-triangle frame of the built-in cloth-ball, a ~1.6M-triangle frame of large-breaking, and the
 // 99k long thin triangles of scenes/lattice.hpp. The traced layout (BM_*_blocks: 8-wide nodes with
 // leaves in SIMD blocks of 8) from each builder, and from morton_wide (the wide tree straight from the
-// sorted Morton codes). Each builder three ways: the
+// sorted Morton codes; BM_morton_wide8_blocks: morton_wide::build_blocks, leaves packed as they are made). Each builder three ways: the
 // binary Bvh (BM_<builder>), binary + make_wide<8> (BM_<builder>_then_wide8) and direct wide emission
 // build_wide<8> (BM_<builder>_wide8; the same tree, the 8-wide layout the study traces); refit of the
 // binary and of the 8-wide LBVH tree (BM_refit_binary, BM_refit_wide8) beside Embree's REFIT.
@@ -91,9 +91,12 @@ void BM_binned_sah_then_wide8(benchmark::State& s) { run_dynbvh(s, [](const auto
 
 // The traced layout (8-wide nodes, leaves in SIMD blocks of 8, wide_blocks.hpp) straight from each
 // builder: direct wide emission with leaves sized for blocks, then packing; morton_wide (morton_wide.hpp)
-// without and with blocks.
+// without blocks, with blocks in one step (build_blocks) and the same tree packed after (make_wide_blocks).
 void BM_morton_wide8(benchmark::State& s) { run_dynbvh(s, [](const auto& t, const auto& ex) { return morton_wide::build<8>(std::span<const Trianglef>(t), {}, ex); }); }
-void BM_morton_wide8_blocks(benchmark::State& s) {
+void BM_morton_wide8_blocks(benchmark::State& s) {   // the traced layout in one step (build_blocks)
+    run_dynbvh(s, [](const auto& t, const auto& ex) { return morton_wide::build_blocks(std::span<const Trianglef>(t), {}, ex); });
+}
+void BM_morton_wide8_then_blocks(benchmark::State& s) {   // the same tree in two steps: the index tree, then packed
     run_dynbvh(s, [](const auto& t, const auto& ex) { return make_wide_blocks(morton_wide::build<8>(std::span<const Trianglef>(t), {}, ex), t, ex); });
 }
 void BM_lbvh_wide8_blocks(benchmark::State& s) {
@@ -177,6 +180,7 @@ BENCHMARK(BM_binned_sah_then_wide8) DYNBVH_SCENES;
 BENCHMARK(BM_binned_sah_wide8) DYNBVH_SCENES;
 BENCHMARK(BM_morton_wide8) DYNBVH_SCENES;
 BENCHMARK(BM_morton_wide8_blocks) DYNBVH_SCENES;
+BENCHMARK(BM_morton_wide8_then_blocks) DYNBVH_SCENES;
 BENCHMARK(BM_lbvh_wide8_blocks) DYNBVH_SCENES;
 BENCHMARK(BM_ploc_r5_wide8_blocks) DYNBVH_SCENES;
 BENCHMARK(BM_kbvh_wide8_blocks) DYNBVH_SCENES;

@@ -133,6 +133,9 @@ double blocks(std::span<const Trianglef> tris, const Exec& ex) {
     sum += double(occluded<trace::policy<box::robust, tri::moller_trumbore>>(b84, tris, q, 0x3u));
     // packed straight from a wide tree, and refitted in place
     auto mb = make_wide_blocks(morton_wide::build<8>(tris, {}, ex), tris, ex);
+    auto md = morton_wide::build_blocks(tris, {}, ex);   // the same tree in one step
+    auto md4 = morton_wide::build_blocks<4>(tris, {.morton_bits = 63, .max_leaf_size = 4}, ex);
+    sum += double(intersect(md, tris, ray).t) + double(occluded<trace::fast>(md4, tris, ray));
     auto mb4 = make_wide_blocks<4>(lbvh::build_wide<8>(tris, {.leaves = block_leaves}, ex), tris, ex);
     refit(mb, tris, ex);
     refit(mb4, tris, ex);
@@ -174,6 +177,7 @@ double meshes(const MeshView<typename N::scalar_type, Index>& mesh, const Exec& 
         refit(blocks, mesh, ex);
         auto straight = make_wide_blocks(morton_wide::build<8, N, Prim>(mesh, {}, ex), mesh, ex);
         sum += double(occluded(straight, mesh, ray));
+        sum += double(intersect(morton_wide::build_blocks(mesh, {}, ex), mesh, ray).t);
     }
     sum += double(ploc::build(mesh).nodes.size() + mesh.stride() + mesh.indices().size() + mesh.vertex_count());
     sum += double(mesh.vertex(0).x) + double(mesh[0].p0.x) + double(mesh.empty());

@@ -315,6 +315,10 @@ TEST_CASE("mesh view: morton_wide and block packing of wide trees give the span'
         // Blocks straight from a wide tree (the traced layout), from the view and from the span.
         const auto blocks = make_wide_blocks(w8, span, ex);
         CHECK(difference(make_wide_blocks(w8, m.view(), ex), blocks) == "");
+        // The traced layout in one step (morton_wide::build_blocks), from the view: the span's packed tree.
+        CHECK(difference(morton_wide::build_blocks(m.view(), {}, ex), blocks) == "");
+        CHECK(difference(morton_wide::build_blocks(m.strided(), {}, ex), blocks) == "");
+        CHECK(difference(morton_wide::build_blocks(span, {}, ex), blocks) == "");
         const auto pw = ploc::build_wide<8, Node<>, prim::indexed>(m.view(), {.leaves = block_leaves}, ex);
         CHECK(difference(make_wide_blocks<4>(pw, m.strided(), ex), make_wide_blocks<4>(pw, span, ex)) == "");
     });

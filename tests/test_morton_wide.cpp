@@ -2,7 +2,8 @@
 // finite triangle in exactly one leaf, leaves of at most max_leaf_size references that are runs of the
 // Morton order, every slot box exactly the union of what it holds, depth as recorded), against brute
 // force on adversarial rays (closest hit to the bit, any hit), the same tree on every executor, block
-// leaves packed from it, its refit in place, and the errors for bad knobs.
+// leaves packed from it, its refit in place, and the errors for bad knobs. build_blocks (the traced
+// layout in one step) is checked against make_wide_blocks of build, bit for bit, on every executor.
 #include <doctest/doctest.h>
 
 #include <dynbvh/morton_wide.hpp>
@@ -87,6 +88,20 @@ bool same_tree(const WA& a, const WB& b) {
            std::equal(a.prim_ids.begin(), a.prim_ids.end(), b.prim_ids.begin());
 }
 
+/// Empty when two block trees are the same to the bit (nodes, blocks lane by lane, counts), else what differs.
+template <class WA, class WB>
+std::string block_difference(const WA& a, const WB& b) {
+    if (a.nodes.size() != b.nodes.size() || a.blocks.size() != b.blocks.size()) return "sizes differ";
+    if (a.depth != b.depth || a.primitive_count != b.primitive_count || a.excluded != b.excluded) return "depth or counts differ";
+    if (!a.prim_ids.empty() || !b.prim_ids.empty() || !a.leaf_triangles.empty() || !b.leaf_triangles.empty()) return "a block tree with references";
+    if (!a.nodes.empty() && std::memcmp(a.nodes.data(), b.nodes.data(), a.nodes.size() * sizeof(a.nodes[0])) != 0) return "nodes differ";
+    for (std::size_t i = 0; i < a.blocks.size(); ++i)   // field by field: a block's tail padding is not written
+        if (std::memcmp(a.blocks[i].v, b.blocks[i].v, sizeof a.blocks[i].v) != 0 ||
+            std::memcmp(a.blocks[i].prim, b.blocks[i].prim, sizeof a.blocks[i].prim) != 0 || a.blocks[i].count != b.blocks[i].count)
+            return "block " + std::to_string(i) + " differs";
+    return {};
+}
+
 std::vector<std::pair<std::string, std::vector<Trianglef>>> scenes() {
     auto soup = test::random_soup(test::sanitizer_scaled(5000), 51, 0.02f);
     for (std::size_t i = 0; i + 7 < soup.size(); i += 37) soup[i + 7] = soup[i];   // exact ties
@@ -155,6 +170,45 @@ TEST_CASE("morton_wide: a large scene takes the parallel path; prim::copied; blo
     refit(tree, std::span<const Trianglef>(moved));
     CHECK(problems(tree, std::span<const Trianglef>(moved), 8) == "");
     check_rays(tree, std::span<const Trianglef>(moved), 65);
+}
+
+TEST_CASE("morton_wide: build_blocks is make_wide_blocks of build, bit for bit, on every executor (4/8 wide, 4/8 lanes)") {
+    for (const auto& [name, tris] : scenes()) {
+        CAPTURE(name);
+        const std::span<const Trianglef> ts(tris);
+        for (const int bits : {30, 63})
+            for (const std::uint32_t leaf : {1u, 5u, 8u}) {
+                CAPTURE(bits);
+                CAPTURE(leaf);
+                const morton_wide::Config cfg{.morton_bits = bits, .max_leaf_size = leaf};
+                const exec::serial s;
+                const auto w8 = morton_wide::build<8>(ts, cfg, s);
+                const auto w4 = morton_wide::build<4>(ts, cfg, s);
+                const auto b88 = make_wide_blocks(w8, ts, s);
+                const auto b84 = make_wide_blocks<4>(w8, ts, s);
+                const auto b44 = make_wide_blocks(w4, ts, s);
+                const auto b48 = make_wide_blocks<8>(w4, ts, s);
+                test::for_each_executor([&](auto ex) {
+                    CHECK(block_difference(morton_wide::build_blocks(ts, cfg, ex), b88) == "");
+                    CHECK(block_difference(morton_wide::build_blocks<8, 4>(ts, cfg, ex), b84) == "");
+                    CHECK(block_difference(morton_wide::build_blocks<4>(ts, cfg, ex), b44) == "");
+                    CHECK(block_difference(morton_wide::build_blocks<4, 8>(ts, cfg, ex), b48) == "");
+                });
+                if (leaf == 8) {
+                    check_rays(morton_wide::build_blocks(ts, cfg), ts, 66);
+                    check_rays(morton_wide::build_blocks<4>(ts, cfg), ts, 67);
+                }
+            }
+    }
+    // the parallel path (more than 256 subtrees), with non-finite triangles spread through the input
+    auto soup = test::random_soup(test::sanitizer_scaled(60000), 58, 0.01f);
+    for (std::size_t i = 11; i < soup.size(); i += 997) soup[i].p0.y = std::numeric_limits<float>::quiet_NaN();
+    const std::span<const Trianglef> ts(soup);
+    const auto ref = make_wide_blocks(morton_wide::build<8>(ts, {}, exec::serial{}), ts, exec::serial{});
+    REQUIRE(ref.nodes.size() > 300);
+    CHECK(ref.excluded == (soup.size() - 11 + 996) / 997);
+    test::for_each_executor([&](auto ex) { CHECK(block_difference(morton_wide::build_blocks(ts, {}, ex), ref) == ""); });
+    check_rays(morton_wide::build_blocks(ts), ts, 68);
 }
 
 TEST_CASE("morton_wide: bad knobs throw std::invalid_argument naming the function and the value") {

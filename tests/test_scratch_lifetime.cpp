@@ -64,3 +64,19 @@ TEST_CASE("scratch: release_scratch while statics still hold blocks, then more b
     CHECK(validate(local, tris).ok());
     CHECK(!g_indexed.empty());   // the statics are untouched; they are freed after main
 }
+
+TEST_CASE("scratch: the 1 MiB threshold applies to the rounded size (2^18 - 1 uint32s are cached and reused)") {
+    release_scratch();
+    constexpr std::size_t n = (std::size_t(1) << 18) - 1;   // 1 MiB - 4 bytes: exactly 1 MiB once rounded to 64 bytes
+    { scratch_vector<std::uint32_t> v(n); }
+    CHECK(scratch_cached_bytes() == detail::ScratchPool::min_cached);   // returned to the cache, at its real size
+    {
+        scratch_vector<std::uint32_t> v(n);
+        CHECK(scratch_cached_bytes() == 0);   // the next frame's array of the same size comes from the cache
+    }
+    CHECK(scratch_cached_bytes() == detail::ScratchPool::min_cached);
+    // Below the threshold once rounded (1 MiB - 64 bytes): not cached, freed.
+    release_scratch();
+    { scratch_vector<std::uint32_t> v(n - 16); }
+    CHECK(scratch_cached_bytes() == 0);
+}

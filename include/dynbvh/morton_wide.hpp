@@ -6,28 +6,34 @@
 /// split where its highest differing key bit changes (found by binary search, Karras 2012's split
 /// rule), a range of equal keys at its middle. A wide node takes its range and splits its largest
 /// child (by reference count) until it has W children or every child is a leaf: a range of at most
-/// `max_leaf_size` references. Boxes are computed on the way back up, each reference box read once.
+/// `max_leaf_size` references. Boxes are computed bottom up, each triangle read once, for its leaf.
 /// Leaves are contiguous runs of the Morton order, so `prim_ids` is the sorted reference array itself.
 ///
 /// Against `lbvh::build_wide` (the LBVH radix tree, SAH leaf collapse, then the wide collapse by
-/// area): fewer passes over memory (references, sort, one top-down pass), leaves sized by count rather
-/// than by SAH, and children chosen by count rather than by area: a somewhat different tree of
-/// similar quality (compare `sah_cost`), built in about half the time. Made for scenes rebuilt every
-/// frame; pair it with block leaves (`make_wide_blocks`, wide_blocks.hpp) for tracing.
+/// area): fewer passes over memory, leaves sized by count rather than by SAH, and children chosen by
+/// count rather than by area: a somewhat different tree of similar quality (compare `sah_cost`), built
+/// in about half the time. Made for scenes rebuilt every frame; `build_blocks` gives the traced layout
+/// (leaves in SIMD triangle blocks, wide_blocks.hpp) in the same pass.
 /// @code
-///   auto wide = dynbvh::morton_wide::build(tris);                        // 8-wide, prim::indexed
-///   auto fast = dynbvh::make_wide_blocks(dynbvh::morton_wide::build(tris, {}, ex), tris, ex);
+///   auto wide = dynbvh::morton_wide::build(tris);                   // 8-wide, prim::indexed
+///   auto fast = dynbvh::morton_wide::build_blocks(tris, {}, ex);    // the same tree, leaves in blocks of 8
 /// @endcode
-/// Parallel structure: the top of the tree is split serially, breadth first, until 256 ranges are
-/// pending; each is built depth first by one task into its own array, and the arrays are concatenated
-/// (as the wide conversions do): the same tree on every executor and thread count. O(n log n) for the
-/// sort-free part's binary searches (short: within each range), O(n) memory traffic otherwise.
+/// Passes: the centroid bounds (one read of the triangles), the codes (a second read), the radix sort
+/// of the codes with the triangle ids, then the tree: the top is split serially, breadth first, until
+/// 256 ranges are pending; each range's topology is built depth first by one task (binary searches on
+/// the keys alone); one scan over the tasks places their nodes and blocks; each task then writes its
+/// nodes straight into the tree, reading each of its triangles once for the leaf boxes (and blocks or
+/// leaf copies). No reference boxes are stored, and no array is copied or converted after the build.
+/// The same tree on every executor and thread count. O(n log n) for the binary searches (short:
+/// within each range), O(n) memory traffic otherwise; 10 parallel steps (fork-joins) in all, 6 of
+/// them the radix sort's (30-bit codes).
 #pragma once
 
 #include <algorithm>
 #include <bit>
 #include <cstddef>
 #include <cstdint>
+#include <limits>
 #include <span>
 #include <type_traits>
 #include <utility>
@@ -42,6 +48,7 @@
 #include "mesh.hpp"
 #include "executor.hpp"
 #include "wide.hpp"
+#include "wide_blocks.hpp"
 
 namespace dynbvh::morton_wide {
 
@@ -97,50 +104,189 @@ inline int open_range(const Key* keys, Range r, std::uint32_t max_leaf, Range* c
     return n;
 }
 
-/// Builds the subtree over `r` (r.size() > max_leaf) depth first into `out` (its root at `at`, child
-/// indices local to `out`); returns its box. `deepest` is raised to the deepest wide level reached.
-template <int W, class WNode, class Key, class T>
-AABB<T> build_subtree(const Key* keys, const References<T>& refs, std::uint32_t max_leaf, Range r, std::size_t at,
-                      std::uint32_t depth, scratch_vector<WNode>& out, std::uint32_t& deepest) {
-    using Index = typename WNode::index_type;
-    deepest = std::max(deepest, depth);
-    Range c[std::size_t(W)];
-    const int n = open_range<W>(keys, r, max_leaf, c);
-    WNode w;
-    w.clear();
-    AABB<T> all;
-    for (int k = 0; k < n; ++k) {
-        AABB<T> box;
-        if (c[k].size() <= max_leaf) {
-            for (std::uint32_t i = c[k].begin; i < c[k].end; ++i) box.extend(refs.box[i]);
-            w.child[k] = Index(c[k].begin);
-            w.count[k] = Index(c[k].size());
-        } else {
-            const std::size_t child = out.size();
-            out.emplace_back();
-            box = build_subtree<W>(keys, refs, max_leaf, c[k], child, depth + 1, out, deepest);
-            w.child[k] = Index(child);
-        }
-        w.set_bounds(k, box);
-        all.extend(box);
-    }
-    out[at] = w;
-    return all;
+/// The references sorted along the curve: their keys and user triangles (finite triangles only).
+template <class Key>
+struct Sorted {
+    scratch_vector<Key> keys;
+    scratch_vector<std::uint32_t> prim;
+    std::size_t excluded = 0;   ///< triangles left out (a NaN or infinite vertex)
+};
+
+/// Box of a triangle, the expression make_references uses (the same bits, signed zeros included).
+template <class T>
+inline AABB<T> triangle_box(const Triangle<T>& t) noexcept {
+    return {dynbvh::min(dynbvh::min(t.p0, t.p1), t.p2), dynbvh::max(dynbvh::max(t.p0, t.p1), t.p2)};
 }
 
-/// The tree over sorted `keys` / `refs` (see the file comment).
-template <int W, class Result, class Key, class T, class Exec>
-void build_nodes(const Key* keys, const References<T>& refs, std::uint32_t max_leaf, Result& wide, const Exec& ex) {
+/// True when every vertex coordinate is finite (x - x is 0 for finite x, NaN otherwise).
+template <class T>
+inline bool finite_triangle(const Triangle<T>& t) noexcept {
+    const Vec3<T> z = (t.p0 - t.p0) + (t.p1 - t.p1) + (t.p2 - t.p2);
+    return z.x + z.y + z.z == T(0);
+}
+
+/// The finite triangles of `tris` sorted by the Morton code of their box centres: the keys and
+/// order make_references + morton::sort_references give, without the reference boxes (the tree reads
+/// each triangle once, later, where it packs the leaves). Two passes over the triangles (centroid
+/// bounds; codes), then the radix sort; a triangle with a non-finite vertex gets a key above every
+/// code and is cut off after the sort (the finite ones keep their order: the sort is stable).
+template <class Key, class Source, class Exec>
+Sorted<Key> sort_triangles(Source tris, const Exec& ex) {
+    using T = dynbvh::detail::source_scalar_t<Source>;
+    const std::size_t n = tris.size();
+    struct Acc {
+        Vec3<T> lo, hi;   // centroid bounds, as corners (kept in registers)
+        std::size_t bad;
+    };
+    constexpr T inf = std::numeric_limits<T>::infinity();
+    const Acc empty{{inf, inf, inf}, {-inf, -inf, -inf}, 0};
+    // Step 1: centroid bounds of the finite triangles (the chunks of make_references: the same floats).
+    const std::size_t tasks = std::clamp<std::size_t>(n / 4096, 1, 4 * ex.concurrency());
+    const std::size_t chunk = (n + tasks - 1) / tasks;
+    std::vector<Acc> partial(tasks, empty);
+    ex.for_tasks(tasks, [&](std::size_t k) {
+        Acc a = empty;
+        for (std::size_t i = std::min(n, k * chunk), e = std::min(n, i + chunk); i < e; ++i) {
+            const Triangle<T>& t = tris[i];
+            if (finite_triangle(t)) {
+                const AABB<T> b = triangle_box(t);
+                const Vec3<T> c = (b.min + b.max) * T(0.5);
+                a.lo = dynbvh::min(a.lo, c);
+                a.hi = dynbvh::max(a.hi, c);
+            } else {
+                ++a.bad;
+            }
+        }
+        partial[k] = a;
+    });
+    Acc acc = empty;
+    for (const Acc& a : partial) acc = {dynbvh::min(acc.lo, a.lo), dynbvh::max(acc.hi, a.hi), acc.bad + a.bad};
+    Sorted<Key> out;
+    out.excluded = acc.bad;
+    if (acc.bad == n) return out;
+    // Step 2: the codes (a non-finite triangle: the key just above every code).
+    const morton::Quantizer<T> q(AABB<T>{acc.lo, acc.hi}, morton::grid_bits<Key>);
+    constexpr Key beyond = Key(1) << morton::code_bits<Key>;
+    out.keys.resize(n);
+    Key* keys = out.keys.data();
+    if (acc.bad == 0)   // (the common case: no test per triangle)
+        ex.for_each(0, n, [&](std::size_t i) {
+            const Triangle<T>& t = tris[i];
+            keys[i] = morton::encode<Key>(q, triangle_box(t).center());
+        });
+    else
+        ex.for_each(0, n, [&](std::size_t i) {
+            const Triangle<T>& t = tris[i];
+            keys[i] = finite_triangle(t) ? morton::encode<Key>(q, triangle_box(t).center()) : beyond;
+        });
+    // Step 3: sort (the original positions are the triangle ids), cut the non-finite tail.
+    out.prim = radix_sort_order(out.keys, ex, morton::code_bits<Key> + (acc.bad != 0 ? 1 : 0));
+    out.keys.resize(n - acc.bad);
+    out.prim.resize(n - acc.bad);
+    return out;
+}
+
+/// One wide node of a task's subtree before its boxes are known: its children's ranges and, for an
+/// inner child, the child's index in the task's array; the task-local index of its first block.
+template <int W>
+struct Topology {
+    Range c[std::size_t(W)];
+    std::uint32_t child[std::size_t(W)];
+    std::uint32_t first_block;
+    int n;
+};
+
+/// Step 2a of build_nodes: the subtree over `r` (r.size() > max_leaf) depth first into `out` (its root
+/// at `at`), the node order of the boxes-included build; `blocks` counts the blocks of its leaves in
+/// node order (L lanes; 0: no blocks) and `deepest` is raised to the deepest wide level reached.
+template <int W, int L, class Key>
+void build_topology(const Key* keys, std::uint32_t max_leaf, Range r, std::size_t at, std::uint32_t depth,
+                    scratch_vector<Topology<W>>& out, std::uint32_t& deepest, std::uint32_t& blocks) {
+    deepest = std::max(deepest, depth);
+    Topology<W>& t = out[at];
+    t.n = open_range<W>(keys, r, max_leaf, t.c);
+    t.first_block = blocks;
+    const int n = t.n;
+    Range c[std::size_t(W)];
+    std::copy(t.c, t.c + n, c);   // `t` moves when `out` grows below
+    if constexpr (L != 0)
+        for (int k = 0; k < n; ++k)
+            if (c[k].size() <= max_leaf) blocks += std::uint32_t(dynbvh::detail::blocks_for<L>(c[k].size()));
+    for (int k = 0; k < n; ++k) {
+        if (c[k].size() <= max_leaf) continue;
+        const std::size_t child = out.size();
+        out.emplace_back();
+        out[at].child[k] = std::uint32_t(child);
+        build_topology<W, L>(keys, max_leaf, c[k], child, depth + 1, out, deepest, blocks);
+    }
+}
+
+/// Writes the leaf over sorted references [r.begin, r.end) and returns its box: the box of each
+/// triangle (tris[prim[i]], read once) extended in order; prim::copied also copies the triangles to
+/// their leaf slots, prim::blocks<L> packs them into the blocks from `block` on (lane by lane in
+/// slot order, the last block padded: what make_wide_blocks does).
+template <class Result, class Source>
+AABB<typename Result::scalar_type> write_leaf(const std::uint32_t* prim, Range r, Source tris, Result& wide, std::size_t block) {
+    using T = typename Result::scalar_type;
+    constexpr int L = Result::block_lanes;
+    AABB<T> box;
+    if constexpr (L != 0) {
+        auto* b = wide.blocks.data() + block;
+        for (std::uint32_t i = r.begin; i < r.end; i += std::uint32_t(L), ++b) {
+            const int m = int(std::min<std::uint32_t>(std::uint32_t(L), r.end - i));
+            for (int k = 0; k < m; ++k) {
+                const Triangle<T>& t = tris[prim[i + std::uint32_t(k)]];
+                box.extend(triangle_box(t));
+                b->set(k, t, prim[i + std::uint32_t(k)]);
+            }
+            b->pad(m);
+        }
+    } else {
+        (void)block;
+        for (std::uint32_t i = r.begin; i < r.end; ++i) {
+            const Triangle<T>& t = tris[prim[i]];
+            box.extend(triangle_box(t));
+            if constexpr (Result::precomputed) wide.leaf_triangles[i] = t;
+        }
+    }
+    return box;
+}
+
+/// Fetches the triangles of node `t`'s leaves ahead of write_leaf (a span's triangles are scattered
+/// in memory in Morton order; a MeshView's are made on the fly: nothing to fetch).
+template <int W, class Source>
+void prefetch_leaves(const Topology<W>& t, const std::uint32_t* prim, std::uint32_t max_leaf, Source tris) {
+#if defined(__GNUC__)
+    if constexpr (std::is_lvalue_reference_v<decltype(tris[0])>)
+        for (int k = 0; k < t.n; ++k)
+            if (t.c[k].size() <= max_leaf)
+                for (std::uint32_t i = t.c[k].begin; i < t.c[k].end; ++i) __builtin_prefetch(&tris[prim[i]]);
+#else
+    (void)t; (void)prim; (void)max_leaf; (void)tris;
+#endif
+}
+
+/// The tree over sorted `keys` / `prim` (see the file comment) into `wide`: nodes, leaves (prim_ids
+/// slots, leaf triangles or blocks) and depth. Parallel structure: the top serially, breadth first,
+/// until 256 ranges are pending; each range's topology by one task (no boxes: binary searches on the
+/// keys only); one scan over the tasks places their nodes and blocks; then each task writes its nodes
+/// bottom up straight into the tree, reading each of its triangles once for the leaf boxes (and the
+/// blocks). The same tree on every executor and thread count.
+template <int W, class Result, class Key, class Source, class Exec>
+void build_nodes(const Key* keys, const std::uint32_t* prim, std::uint32_t n, std::uint32_t max_leaf, Source tris, Result& wide,
+                 const Exec& ex) {
     using WNode = typename Result::node_type;
     using Index = typename WNode::index_type;
-    const auto n = std::uint32_t(refs.size());
+    constexpr int L = Result::block_lanes;
+    constexpr auto blocks_of = [](std::uint32_t refs) { return L == 0 ? std::size_t(0) : dynbvh::detail::blocks_for<(L == 0 ? 1 : L)>(refs); };
+    auto leaf_child = [&](Range r, std::size_t block) { return Index(L != 0 ? block : r.begin); };
+    if constexpr (Result::precomputed) wide.leaf_triangles.resize(n);
     if (n <= max_leaf) {   // one wide node with one leaf slot
+        if constexpr (L != 0) wide.blocks.resize(blocks_of(n));
         WNode w;
         w.clear();
-        AABB<T> box;
-        for (std::uint32_t i = 0; i < n; ++i) box.extend(refs.box[i]);
-        w.set_bounds(0, box);
-        w.child[0] = 0;
+        w.set_bounds(0, write_leaf(prim, {0, n}, tris, wide, 0));
+        w.child[0] = leaf_child({0, n}, 0);
         w.count[0] = Index(n);
         wide.nodes.push_back(w);
         return;
@@ -151,9 +297,16 @@ void build_nodes(const Key* keys, const References<T>& refs, std::uint32_t max_l
         int slot;
         std::uint32_t depth;  // its wide depth
     };
+    struct TopLeaf {
+        Index node;
+        int slot;
+        std::size_t block;    // its first block (blocks of the top leaves come first, in node order)
+    };
     constexpr std::size_t target = 256;   // as the wide conversions: the same tree on every executor
     std::vector<WNode> top;
     std::vector<Pending> queue;
+    std::vector<TopLeaf> top_leaves;
+    std::size_t top_blocks = 0;
     std::size_t head = 0;
     auto expand_top = [&](Range r, std::uint32_t depth) {
         const auto id = Index(top.size());
@@ -163,15 +316,15 @@ void build_nodes(const Key* keys, const References<T>& refs, std::uint32_t max_l
         w.clear();
         for (int k = 0; k < m; ++k) {
             if (c[k].size() <= max_leaf) {
-                AABB<T> box;
-                for (std::uint32_t i = c[k].begin; i < c[k].end; ++i) box.extend(refs.box[i]);
-                w.set_bounds(k, box);
-                w.child[k] = Index(c[k].begin);
+                w.child[k] = Index(c[k].begin);   // the range until write_leaf
                 w.count[k] = Index(c[k].size());
+                top_leaves.push_back({id, k, top_blocks});
+                top_blocks += blocks_of(c[k].size());
             } else {
-                w.set_bounds(k, AABB<T>{refs.bounds.min, refs.bounds.max});   // a valid box until the subtree's is known
                 queue.push_back({c[k], id, k, depth + 1});
             }
+            w.lo_x[k] = 0;   // a non-empty slot until its box is known
+            w.hi_x[k] = 0;
         }
         top.push_back(w);
         wide.depth = std::max(wide.depth, depth);
@@ -183,32 +336,79 @@ void build_nodes(const Key* keys, const References<T>& refs, std::uint32_t max_l
         const Pending p = queue[head++];
         top[p.parent].child[p.slot] = expand_top(p.range, p.depth);
     }
-    // Step 2: each pending range depth first by one task, into its own array.
+    // Step 2a: each pending range's topology by one task, into its own array.
     const std::size_t tasks = queue.size() - head;
-    std::vector<scratch_vector<WNode>> local(tasks);
-    std::vector<std::uint32_t> local_depth(tasks, 0);
-    std::vector<AABB<T>> local_box(tasks);
+    std::vector<scratch_vector<Topology<W>>> local(tasks);
+    std::vector<std::uint32_t> local_depth(tasks, 0), local_blocks(tasks, 0);
     ex.for_tasks(tasks, [&](std::size_t k) {
         const Pending& p = queue[head + k];
-        scratch_vector<WNode>& out = local[k];
+        scratch_vector<Topology<W>>& out = local[k];
         out.reserve(p.range.size() / (W * max_leaf / 2) + 8);
         out.emplace_back();
         local_depth[k] = p.depth;
-        local_box[k] = build_subtree<W>(keys, refs, max_leaf, p.range, 0, p.depth, out, local_depth[k]);
+        build_topology<W, L>(keys, max_leaf, p.range, 0, p.depth, out, local_depth[k], local_blocks[k]);
     });
-    for (std::size_t k = 0; k < tasks; ++k) top[queue[head + k].parent].set_bounds(queue[head + k].slot, local_box[k]);
-    // Step 3: the top slots' boxes bottom-up (a top node's inner children come after it, breadth first),
-    // then the arrays after the top, linked in, with shifted child indices.
+    // Step 2b: where each task's nodes and blocks go (after the top's, in task order); link the top.
+    std::vector<std::size_t> node_base(tasks), block_base(tasks);
+    std::size_t nodes_total = top.size(), blocks_total = top_blocks;
+    for (std::size_t k = 0; k < tasks; ++k) {
+        node_base[k] = nodes_total;
+        block_base[k] = blocks_total;
+        nodes_total += local[k].size();
+        blocks_total += local_blocks[k];
+        top[queue[head + k].parent].child[queue[head + k].slot] = Index(node_base[k]);
+        wide.depth = std::max(wide.depth, local_depth[k]);
+    }
+    wide.nodes.resize(nodes_total);
+    if constexpr (L != 0) wide.blocks.resize(blocks_total);
+    // Step 2c: each task's nodes into place: first in order (the leaves: boxes from the triangles, read
+    // once, fetched a few nodes ahead; blocks), then last first (the inner boxes: children before parents).
+    ex.for_tasks(tasks, [&](std::size_t k) {
+        const scratch_vector<Topology<W>>& nodes = local[k];
+        const std::size_t base = node_base[k], count = nodes.size();
+        constexpr std::size_t ahead = 2;   // nodes (about 40 triangles)
+        for (std::size_t i = 0; i < std::min(ahead, count); ++i) prefetch_leaves(nodes[i], prim, max_leaf, tris);
+        for (std::size_t i = 0; i < count; ++i) {
+            if (i + ahead < count) prefetch_leaves(nodes[i + ahead], prim, max_leaf, tris);
+            const Topology<W>& t = nodes[i];
+            WNode w;
+            w.clear();
+            std::size_t block = block_base[k] + t.first_block;
+            for (int s = 0; s < t.n; ++s) {
+                const Range r = t.c[s];
+                if (r.size() <= max_leaf) {
+                    w.set_bounds(s, write_leaf(prim, r, tris, wide, block));
+                    w.child[s] = leaf_child(r, block);
+                    w.count[s] = Index(r.size());
+                    block += blocks_of(r.size());
+                } else {
+                    w.child[s] = Index(base + t.child[s]);
+                }
+            }
+            wide.nodes[base + i] = w;
+        }
+        for (std::size_t i = count; i-- > 0;) {
+            const Topology<W>& t = nodes[i];
+            WNode& w = wide.nodes[base + i];
+            for (int s = 0; s < t.n; ++s)
+                if (t.c[s].size() > max_leaf) w.set_bounds(s, wide.nodes[w.child[s]].bounds());
+        }
+        top[queue[head + k].parent].set_bounds(queue[head + k].slot, wide.nodes[base].bounds());
+    });
+    // Step 3: the top's leaves, then its inner slots bottom-up (a top node's inner children come after
+    // it, breadth first), then the top nodes into place.
+    for (const TopLeaf& l : top_leaves) {
+        WNode& w = top[l.node];
+        const Range r{std::uint32_t(w.child[l.slot]), std::uint32_t(w.child[l.slot] + w.count[l.slot])};
+        w.set_bounds(l.slot, write_leaf(prim, r, tris, wide, l.block));
+        w.child[l.slot] = leaf_child(r, l.block);
+    }
     for (std::size_t i = head; i-- > 0;) {
         const Pending& p = queue[i];
         top[p.parent].set_bounds(p.slot, top[top[p.parent].child[p.slot]].bounds());
     }
-    dynbvh::detail::concatenate_wide<W>(top, queue.data() + head, local, local_depth, wide.nodes, wide.depth, ex);
+    std::copy(top.begin(), top.end(), wide.nodes.begin());
 }
-
-} // namespace detail
-
-namespace detail {
 
 /// build over any triangle source (a span or a MeshView): one code path.
 template <int W, class NodeT, class Prim, class Source, class Exec>
@@ -220,30 +420,28 @@ WideBvh<WideNode<typename NodeT::scalar_type, typename NodeT::index_type, W>, Pr
     if (cfg.max_leaf_size < 1 || cfg.max_leaf_size > 255)
         throw std::invalid_argument("dynbvh::morton_wide::build: max_leaf_size must be 1..255, got " + std::to_string(cfg.max_leaf_size));
     BinaryTree::check_size(tris.size(), "dynbvh::morton_wide::build");
-    auto refs = make_references(tris, ex);
     Result wide;
-    wide.primitive_count = refs.primitive_count;
-    wide.excluded = refs.excluded;
-    if (refs.size() == 0) return wide;
+    wide.primitive_count = tris.size();
     // Sort along the curve, then split top down.
     auto run = [&](auto key) {
         using Key = decltype(key);
-        const scratch_vector<Key> keys = morton::sort_references<Key>(refs, ex);
-        build_nodes<W>(keys.data(), refs, cfg.max_leaf_size, wide, ex);
+        Sorted<Key> sorted = sort_triangles<Key>(tris, ex);
+        wide.excluded = sorted.excluded;
+        const auto n = std::uint32_t(sorted.prim.size());
+        if (n == 0) return;
+        build_nodes<W>(sorted.keys.data(), sorted.prim.data(), n, cfg.max_leaf_size, tris, wide, ex);
+        // Leaves are runs of the sorted references: their prim array is the sorted ids as they stand.
+        if constexpr (Result::block_lanes == 0) {
+            if constexpr (std::is_same_v<decltype(wide.prim_ids), decltype(sorted.prim)>) {
+                wide.prim_ids = std::move(sorted.prim);
+            } else {
+                wide.prim_ids.resize(n);
+                ex.for_each(0, n, [&](std::size_t i) { wide.prim_ids[i] = typename NodeT::index_type(sorted.prim[i]); });
+            }
+        }
     };
     if (cfg.morton_bits == 63) run(std::uint64_t{});
     else run(std::uint32_t{});
-    // Leaves are runs of the sorted references: their prim array is prim_ids as it stands.
-    if constexpr (std::is_same_v<decltype(wide.prim_ids), decltype(refs.prim)>) {
-        wide.prim_ids = std::move(refs.prim);
-    } else {
-        wide.prim_ids.resize(refs.size());
-        ex.for_each(0, refs.size(), [&](std::size_t i) { wide.prim_ids[i] = typename NodeT::index_type(refs.prim[i]); });
-    }
-    if constexpr (Result::precomputed) {
-        wide.leaf_triangles.resize(wide.prim_ids.size());
-        ex.for_each(0, wide.prim_ids.size(), [&](std::size_t s) { wide.leaf_triangles[s] = tris[wide.prim_ids[s]]; });
-    }
     return wide;
 }
 
@@ -254,7 +452,8 @@ WideBvh<WideNode<typename NodeT::scalar_type, typename NodeT::index_type, W>, Pr
 /// std::invalid_argument for morton_bits other than 30 or 63 or a max_leaf_size outside 1..255,
 /// std::length_error beyond 2^31 - 1 triangles. O(n) passes plus the radix sort, parallel over `ex`.
 /// @tparam W 4 or 8, @tparam NodeT the binary node type whose scalar and index the wide node takes,
-/// @tparam Prim prim::indexed or prim::copied.
+/// @tparam Prim prim::indexed, prim::copied, or prim::blocks<L> (float only): the traced layout, as
+/// `build_blocks` below.
 template <int W = 8, class NodeT = Node<>, class Prim = prim::indexed, class Exec = exec::default_executor>
 WideBvh<WideNode<typename NodeT::scalar_type, typename NodeT::index_type, W>, Prim>
 build(std::span<const Triangle<typename NodeT::scalar_type>> tris, const Config& cfg = {}, const Exec& ex = {}) {
@@ -273,6 +472,23 @@ build(const MeshView<T, Index>& mesh, const Config& cfg = {}, const Exec& ex = {
 template <int W = 8, class T, class Exec = exec::default_executor>
 WideBvh<WideNode<T, std::uint32_t, W>> build(const std::vector<Triangle<T>>& tris, const Config& cfg = {}, const Exec& ex = {}) {
     return build<W, Node<T>, prim::indexed, Exec>(std::span<const Triangle<T>>(tris), cfg, ex);
+}
+
+/// The traced layout in one step: the W-wide tree `build` gives with its leaves packed into SIMD
+/// blocks of L triangles (wide_blocks.hpp), the tree `make_wide_blocks<L>(build<W>(tris, cfg, ex), tris, ex)`
+/// gives, bit for bit, without the index tree: each leaf's triangles are read once, for its box and
+/// its blocks. `dynbvh::morton_wide::build_blocks(tris)` (a std::vector converts). Same errors as `build`.
+template <int W = 8, int L = W, class Exec = exec::default_executor>
+WideBvh<WideNode<float, std::uint32_t, W>, prim::blocks<L>> build_blocks(std::span<const Triangle<float>> tris, const Config& cfg = {},
+                                                                         const Exec& ex = {}) {
+    return detail::build<W, Node<float>, prim::blocks<L>>(tris, cfg, ex);
+}
+
+/// The same over an indexed float mesh read in place (mesh.hpp): the span's tree, bit for bit.
+template <int W = 8, int L = W, class Exec = exec::default_executor, class Index>
+WideBvh<WideNode<float, std::uint32_t, W>, prim::blocks<L>> build_blocks(const MeshView<float, Index>& mesh, const Config& cfg = {},
+                                                                         const Exec& ex = {}) {
+    return detail::build<W, Node<float>, prim::blocks<L>>(mesh, cfg, ex);
 }
 
 } // namespace dynbvh::morton_wide

@@ -33,7 +33,8 @@
 ///
 /// Dynamic scenes: refit(block tree, tris) reloads every block's vertices from `tris` and refits the
 /// boxes in place (no conversion); make_wide_blocks also packs a wide tree straight from a builder's
-/// build_wide (no binary tree), which is the traced layout's fastest build.
+/// build_wide (no binary tree). The traced layout's fastest build is morton_wide::build_blocks
+/// (morton_wide.hpp): the tree make_wide_blocks(morton_wide::build(...)) gives, packed as it is built.
 #pragma once
 
 #include <cstddef>

@@ -37,7 +37,8 @@ void radix_sort_impl(std::vector<Key, KeyAlloc>& keys, std::vector<Value, ValueA
     const std::size_t buckets = std::size_t(1) << digit_bits;
     const Key mask = Key(buckets - 1);
 
-    std::size_t tasks = std::min<std::size_t>(ex.concurrency(), std::max<std::size_t>(1, n / 65536));
+    // Chunks of at least 16Ki keys: a 100k-key sort (a 100k-triangle scene) already runs on 2+ workers.
+    std::size_t tasks = std::min<std::size_t>(ex.concurrency(), std::max<std::size_t>(1, n / 16384));
     if (tasks == 0) tasks = 1;
     const std::size_t chunk = (n + tasks - 1) / tasks;
 

@@ -24,7 +24,7 @@ namespace detail {
 /// Process-wide cache of freed large blocks (best fit, bounded total size).
 class ScratchPool {
 public:
-    static constexpr std::size_t min_cached = std::size_t(1) << 20;     ///< smaller blocks bypass the cache
+    static constexpr std::size_t min_cached = std::size_t(1) << 20;     ///< smaller blocks (after rounding) bypass the cache
     static constexpr std::size_t alignment = 64;
 
     /// The pool is never destroyed (deliberately leaked; its blocks stay reachable, so leak checkers
@@ -35,12 +35,19 @@ public:
         static ScratchPool* const pool = new ScratchPool;
         return *pool;
     }
+    /// Bytes a request of `bytes` really takes: rounded up to the alignment. The cache threshold and
+    /// the best fit compare this size, in take and give alike (comparing the unrounded size missed the
+    /// cache for arrays just below 1 MiB that round up to it, e.g. 2^18 - 1 uint32s, every rebuild).
+    static constexpr std::size_t rounded(std::size_t bytes) noexcept {
+        return bytes == 0 ? alignment : (bytes + alignment - 1) / alignment * alignment;
+    }
     void* take(std::size_t bytes) {
-        if (bytes >= min_cached) {
+        const std::size_t size = rounded(bytes);
+        if (size >= min_cached) {
             std::lock_guard lock(mutex_);
             std::size_t best = blocks_.size();
             for (std::size_t i = 0; i < blocks_.size(); ++i)
-                if (blocks_[i].size >= bytes && blocks_[i].size <= 2 * bytes &&
+                if (blocks_[i].size >= size && blocks_[i].size <= 2 * size &&
                     (best == blocks_.size() || blocks_[i].size < blocks_[best].size))
                     best = i;
             if (best != blocks_.size()) {
@@ -51,21 +58,20 @@ public:
                 return p;
             }
         }
-        const std::size_t rounded = (bytes + alignment - 1) / alignment * alignment;
-        void* p = std::aligned_alloc(alignment, rounded == 0 ? alignment : rounded);
+        void* p = std::aligned_alloc(alignment, size);
         if (!p) throw std::bad_alloc();
-        if (bytes >= min_cached) {
+        if (size >= min_cached) {
             std::lock_guard lock(mutex_);
-            sizes_.push_back({p, rounded});
+            sizes_.push_back({p, size});
         }
         return p;
     }
     void give(void* p, std::size_t bytes) {
         if (!p) return;
-        if (bytes >= min_cached) {
+        if (rounded(bytes) >= min_cached) {
             std::lock_guard lock(mutex_);
             const auto it = std::find_if(sizes_.begin(), sizes_.end(), [p](const Block& b) { return b.ptr == p; });
-            const std::size_t size = it != sizes_.end() ? it->size : bytes;
+            const std::size_t size = it != sizes_.end() ? it->size : rounded(bytes);
             if (it != sizes_.end()) sizes_.erase(it);
             blocks_.push_back({p, size});
             cached_ += size;
