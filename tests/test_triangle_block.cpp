@@ -336,7 +336,123 @@ void check_adversarial() {
 #endif
 }
 
+/// The t-range part of the watertight filter: triangles around rays at depths behind, at and beyond
+/// the origin (some spanning it), at huge / tiny / subnormal scales and far from the origin, rays of
+/// both direction signs (negative rcp_dz) and of tiny / huge directions (the reciprocal near and past
+/// the filter's 2^-60 .. 2^60 guard), traced with intervals set to the scalar test's own hit t's and
+/// their float neighbours (hits exactly at tmax and tmin). The block test must equal the scalar loop bit
+/// for bit, every lane the scalar test hits with that interval must stay a candidate, and the t range
+/// must reject lanes the edge functions keep (so it does something).
+template <int L>
+void check_t_range() {
+    Rng rng(21);
+    std::size_t unsound = 0, t_rejected = 0, kept = 0;
+    struct Case {
+        const char* name;
+        float scale;     // triangle size and distances
+        Vec3f offset;    // where the rays start
+        float dscale;    // direction length
+    };
+    const Case cases[] = {
+        {"unit", 1.0f, {0, 0, 0}, 1.0f},
+        {"unit, long directions", 1.0f, {0.5f, -0.25f, 2.0f}, 1e17f},
+        {"unit, short directions", 1.0f, {0, 0, 0}, 1e-17f},
+        {"unit, directions past the guard", 1.0f, {0, 0, 0}, 1e20f},
+        {"unit, tiny directions past the guard", 1.0f, {0, 0, 0}, 1e-20f},
+        {"huge (1e30)", 1e30f, {0, 0, 0}, 1.0f},
+        {"tiny (1e-30)", 1e-30f, {0, 0, 0}, 1.0f},
+        {"subnormal (1e-41)", 1e-41f, {0, 0, 0}, 1.0f},
+        {"far from the origin (1e7)", 1.0f, {1e7f, -3e7f, 2e7f}, 1.0f},
+    };
+    const float depths[] = {-3.0f, -1.0f, -1e-3f, 0.0f, 1e-6f, 0.25f, 1.0f, 1.0f, 2.5f, 40.0f};
+    for (const Case& cs : cases) {
+        Scene s;
+        s.name = std::string("t range: ") + cs.name;
+        std::vector<Rayf> base;
+        for (int r = 0; r < 24; ++r) {
+            Rayf ray;
+            ray.org = cs.offset + Vec3f{rng.uniform(-1, 1), rng.uniform(-1, 1), rng.uniform(-1, 1)} * cs.scale;
+            Vec3f d{rng.uniform(-1, 1), rng.uniform(-1, 1), rng.uniform(-1, 1)};
+            if (r % 4 == 0) d[std::size_t(r / 4 % 3)] = (r & 8) ? -2.0f : 2.0f;   // a clear dominant axis, either sign
+            ray.dir = d * cs.dscale;
+            ray.tmin = -inf;
+            base.push_back(ray);
+            const Vec3f unit = d * (cs.scale / length(d));   // one scale step along the ray
+            for (const float t0 : depths) {
+                const Vec3f c = ray.org + unit * t0;
+                auto jitter = [&] { return Vec3f{rng.uniform(-1, 1), rng.uniform(-1, 1), rng.uniform(-1, 1)} * (0.5f * cs.scale); };
+                Trianglef t{c + jitter(), c + jitter(), c + jitter()};
+                const std::uint64_t kind = rng.next() % 3;
+                if (kind == 0) {   // a long triangle along the ray, spanning depths on both sides of c
+                    t.p0 = c - unit * 2.0f + jitter() * 0.1f;
+                    t.p1 = c + unit * 2.0f + jitter() * 0.1f;
+                } else if (kind == 1 && r % 4 == 0) {   // facing the ray: one depth along its dominant axis (t ~ tmax to the ulp)
+                    const std::size_t z = std::size_t(r / 4 % 3);
+                    t.p1[z] = t.p2[z] = t.p0[z];
+                }
+                s.tris.push_back(t);
+                if (rng.next() % 4 == 0) s.tris.push_back(t);   // an exact tie
+            }
+        }
+        make_leaves<L>(s, rng);
+        const Packed<L> p = pack<L>(s);
+        // intervals at the scalar test's own t's: [-inf, t], [-inf, t-], [t, inf], [t+, inf], [t, t]
+        std::vector<Rayf> rays;
+        for (const Rayf& r : base) {
+            rays.push_back(r);
+            Rayf fwd = r;
+            fwd.tmin = 0.0f;
+            rays.push_back(fwd);
+            for (const Trianglef& t : s.tris) {
+                const Hitf h = intersect_triangle(t, r);
+                if (!h) continue;
+                Rayf a = r;
+                a.tmax = h.t;
+                rays.push_back(a);
+                a.tmax = std::nextafter(h.t, -inf);
+                rays.push_back(a);
+                Rayf b = r;
+                b.tmin = h.t;
+                b.tmax = inf;
+                rays.push_back(b);
+                b.tmin = std::nextafter(h.t, inf);
+                rays.push_back(b);
+                b.tmin = b.tmax = h.t;
+                rays.push_back(b);
+            }
+        }
+        Counts c;
+        compare<tri::watertight, L>(s, p, rays, c);
+        CHECK_MESSAGE(c.bad == 0, s.name);
+        // every lane the scalar test hits within the interval stays a candidate
+        for (const Rayf& r : rays) {
+            const detail::BlockTest<tri::watertight, L> bt(r);
+            for (const auto& b : p.blocks) {
+                const unsigned edges = bt.candidates(b), cand = bt.candidates(b, r.tmax);
+                if ((cand & ~edges) != 0) ++unsound;   // the t range only removes lanes
+                for (int k = 0; k < int(b.count); ++k) {
+                    kept += edges >> k & 1;
+                    if ((edges >> k & 1) && !(cand >> k & 1)) ++t_rejected;
+                    if (intersect_triangle(b.triangle(k), r) && !(cand >> k & 1)) {
+                        if (unsound++ < 4) MESSAGE(s.name << ": a hit lane rejected for ray " << test::describe(r));
+                    }
+                }
+            }
+        }
+    }
+    MESSAGE("t range L=" << L << ": rejected " << t_rejected << " of the " << kept << " lanes the edge functions keep");
+    CHECK(unsound == 0);
+#if defined(DYNBVH_SSE)
+    CHECK(t_rejected * 10 > kept);   // it does reject (triangles behind the origin, beyond tmax)
+#endif
+}
+
 } // namespace
+
+TEST_CASE("watertight block filter: the t range against [tmin, tmax] == scalar loop bit for bit (4 and 8 lanes)") {
+    check_t_range<4>();
+    check_t_range<8>();
+}
 
 TEST_CASE("packing: every reference once, in slot order, padded blocks, the same on every executor") {
     Rng rng(1);
