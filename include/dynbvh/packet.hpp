@@ -37,10 +37,9 @@
 /// stack entries are skipped once none of their rays can find a closer hit there.
 /// Leaves: block leaves (prim::blocks) and index leaves test each triangle against all rays of the
 /// packet at once: tri::watertight with the SIMD float filter of the block test (detail::WatertightFilter,
-/// the same forward error bound per (ray, triangle) pair, and the same t-range test against each ray's
-/// current [tmin, tmax]) and the exact scalar test on each kept ray with that ray's tmax;
-/// tri::moller_trumbore with the scalar test's operations lane by lane (bit for bit as long as neither
-/// side is FMA-contracted, as for the block test).
+/// the same forward error bound per (ray, triangle) pair) and the exact scalar test on each kept ray with
+/// that ray's tmax; tri::moller_trumbore with the scalar test's operations lane by lane (bit for bit as
+/// long as neither side is FMA-contracted, as for the block test).
 /// Other cases (double trees, box::fast, -DDYNBVH_NO_SIMD, non-x86): a loop of single-ray queries, which
 /// gives the same answers by construction. (box::fast is not conservative, so its answers could depend
 /// on the visit order: its packets are traced ray by ray.)
@@ -284,7 +283,6 @@ struct PacketTraversal {
     alignas(64) float ix[NZ], iy[NZ], iz[NZ];   // 1 / dir, correctly rounded (box::robust::prepared's inv)
     alignas(64) float tmax[NZ];                 // the closest hit so far; -inf outside the group
     alignas(64) float sx[NZ], sy[NZ];           // watertight: shear (prepared's sx, sy)
-    alignas(64) float trcp[NZ], tlo[NZ];        // watertight: the t-range test's reciprocal and tmin limit
     std::uint32_t best[NZ];
     Hit<float> hit[NZ];
     union PtStore {
@@ -390,20 +388,14 @@ struct PacketTraversal {
                 const __m256d rcp = _mm256_div_pd(_mm256_set1_pd(1.0), _mm256_cvtps_pd(_mm_load_ps(d[kz] + o)));
                 _mm_store_ps(sx + o, _mm256_cvtpd_ps(_mm256_mul_pd(_mm256_cvtps_pd(_mm_load_ps(d[kx] + o)), rcp)));
                 _mm_store_ps(sy + o, _mm256_cvtpd_ps(_mm256_mul_pd(_mm256_cvtps_pd(_mm_load_ps(d[ky] + o)), rcp)));
-                // the t-range test's float(rcp_dz), NaN outside [2^-60, 2^60] (WatertightFilter::t_rcp)
-                const __m128 rf = _mm256_cvtpd_ps(rcp), ra = _mm_andnot_ps(_mm_set1_ps(-0.0f), rf);
-                const __m128 ok = _mm_and_ps(_mm_cmpge_ps(ra, _mm_set1_ps(0x1p-60f)), _mm_cmple_ps(ra, _mm_set1_ps(0x1p60f)));
-                _mm_store_ps(trcp + o, _mm_or_ps(_mm_and_ps(ok, rf), _mm_andnot_ps(ok, _mm_set1_ps(std::numeric_limits<float>::quiet_NaN()))));
             }
 #else
             for (int k = 0; k < N; ++k) {
                 const double rcp_dz = 1.0 / double(d[kz][k]);
                 sx[k] = float(double(d[kx][k]) * rcp_dz);
                 sy[k] = float(double(d[ky][k]) * rcp_dz);
-                trcp[k] = WatertightFilter<V>::t_rcp(rcp_dz);
             }
 #endif
-            for (int h = 0; h < NS; ++h) V::store(tlo + h * V::n, WatertightFilter<V>::t_limit(V::load(tmin + h * V::n)));
         }
         (void)f;
         (void)d;
@@ -579,16 +571,10 @@ struct PacketTraversal {
                 if (NS > 1 && (m >> o & step_lanes) == 0) continue;   // no ray of m in this step
                 const R OX = V::load(okx + o), OY = V::load(oky + o), OZ = V::load(okz + o);
                 const R SX = V::load(sx + o), SY = V::load(sy + o);
-                const R za = V::sub(az, OZ), zb = V::sub(bz, OZ), zc = V::sub(cz, OZ);
-                const auto va = F::shear(V::sub(ax, OX), V::sub(ay, OY), za, SX, SY);
-                const auto vb = F::shear(V::sub(bx, OX), V::sub(by, OY), zb, SX, SY);
-                const auto vc = F::shear(V::sub(cx, OX), V::sub(cy, OY), zc, SX, SY);
-                R rej = F::rejects(va, vb, vc);
-                // t beyond each ray's current [tmin, tmax], once a ray of the step has a hit
-                const R TM = V::load(tmax + o);
-                if (V::bits(V::lt(TM, V::set1(std::numeric_limits<float>::infinity()))) & (m >> o))
-                    rej = V::bor(rej, F::t_outside(za, zb, zc, V::load(trcp + o), F::t_limit(TM), V::load(tlo + o)));
-                rejected |= V::bits(rej) << o;
+                const auto va = F::shear(V::sub(ax, OX), V::sub(ay, OY), V::sub(az, OZ), SX, SY);
+                const auto vb = F::shear(V::sub(bx, OX), V::sub(by, OY), V::sub(bz, OZ), SX, SY);
+                const auto vc = F::shear(V::sub(cx, OX), V::sub(cy, OY), V::sub(cz, OZ), SX, SY);
+                rejected |= V::bits(F::rejects(va, vb, vc)) << o;
             }
             std::uint32_t cand = m & ~rejected;
             if (cand == 0) return;

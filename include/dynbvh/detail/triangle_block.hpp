@@ -13,10 +13,8 @@
 ///
 /// Exactness (tri::watertight). The SIMD part is only a conservative filter: it evaluates the
 /// Woop-Benthin-Wald edge functions in float with a forward error bound and rejects a lane only when
-/// two edge functions have certainly strictly opposite signs - lanes the scalar tri::watertight::test
-/// rejects by its (exact) sign test whatever tmax is - or when every t the scalar test could return
-/// lies certainly beyond [tmin, tmax] with the current tmax (back faces, triangles behind the closest
-/// hit so far), lanes it rejects by its t test. Every other valid lane goes,
+/// two edge functions have certainly strictly opposite signs - exactly the lanes the scalar
+/// tri::watertight::test rejects by its (exact) sign test whatever tmax is. Every other valid lane goes,
 /// in slot order and with the current tmax, through tri::watertight::test on that lane's triangle
 /// (rebuilt from the block's floats, which are copies of the user's floats). So the result is the
 /// scalar loop's, bit for bit: same hits, t, u, v, the larger index winning an exact tie
@@ -32,25 +30,6 @@
 /// E = Pc (4u Pb + Db) + Dc (Pb + 2 Db) + FLT_MIN bounds |f - F_scalar| (the slack of 4u over 3u and
 /// FLT_MIN over the eta terms absorb the rounding of E itself). Lanes with |X|+|Y|+|Z| summed over the
 /// vertices >= 2^60, or NaN / infinite, are never rejected (no overflow can occur below that).
-///
-/// The t range (`WatertightFilter::t_outside`), u = 2^-24 again: every t the scalar test returns is
-/// tt = float(((w0 az + w1 bz + w2 cz) rcp_dz) / sum) in double (watertight::finish), with az etc. the
-/// double differences v[kz] - org[kz] and weights w >= 0 of positive rounded sum (both branches of
-/// finish), so before rounding it is the convex combination c = sum_i w_i T_i / sum_i w_i of
-/// T_i = az_i rcp_dz, perturbed. The filter takes q_i = float(Z_i rf) per vertex, Z_i the float
-/// difference (same sign and within u of az_i, both roundings of one exact value; subnormal results
-/// are exact) and rf = float(rcp_dz), used only when 2^-60 <= |rf| <= 2^60 (else NaN: nothing is
-/// rejected), so q_i = T_i (1 + e), |e| <= 3.1u, plus 2^-150 for underflow. It rejects a lane when all
-/// three q_i > |tmax| (1 + 2^-20) + FLT_MIN (rounded once or twice: that limit is >= the exact one times
-/// 1 - 2u), or all three q_i < -(|tmin| (1 + 2^-20) + FLT_MIN). Then all T_i have one sign, so the double
-/// evaluation of c rcp_dz / sum has no cancellation: t_d = c (1 + d), |d| <= 7 2^-53, plus underflow
-/// terms of at most 4 2^-1075 max(1, |rcp_dz|) / sum <= 2^-190 (with |rf| <= 2^60 every non-zero weight
-/// is at least 2^-830: sheared double coordinates are multiples of 2^-411 and so are the products).
-/// Hence |t_d| >= min |q_i| (1 - 4u) - 2^-149 > |tmax| (1 + 9u) + 2^-127 (resp. |tmin|), which puts
-/// tt strictly beyond tmax (tmin) after the final rounding to float: the scalar test would return no
-/// hit there. An exact hit at tmax (a tie) is never rejected; tmax = inf or an overflowing limit gives
-/// inf, and comparisons with NaN fail, so such lanes are kept. The per-ray tmax is the current one;
-/// the traversal tests the t range only once a ray has a hit (tmax finite).
 ///
 /// trace::fast (tri::moller_trumbore): the SIMD test is the scalar test's arithmetic, the same
 /// operations in the same order per lane (including the division), so its t, u, v and hit/miss are
@@ -180,7 +159,6 @@ struct BlockTest {
 
     /// Lanes that may hit (here: every valid lane).
     unsigned candidates(const TriangleBlock<L>& b) const noexcept { return b.valid_mask(); }
-    unsigned candidates(const TriangleBlock<L>& b, float /*tmax*/) const noexcept { return b.valid_mask(); }
 
     /// Blocks [first, end) with test_leaf's contract: each hit narrows tmax and tbox = tmax * t_scale and
     /// sets best_prim and hit.t/u/v; with AnyHit the first hit sets hit.prim and returns true.
@@ -210,8 +188,7 @@ protected:
 /// The SIMD float filter of tri::watertight on V::n (ray, triangle) pairs, one per lane: each lane
 /// holds one vertex's X, Y, Z = vertex - origin (the scalar test's differences: one rounding each) and
 /// the ray's shear sx, sy. `rejects` gives the lanes whose edge functions certainly have strictly
-/// opposite signs (see the file comment for the bound), which the scalar test misses whatever tmax;
-/// `t_outside` the lanes whose t lies certainly beyond the current [tmin, tmax].
+/// opposite signs (see the file comment for the bound), which the scalar test misses whatever tmax.
 /// Shared by the block test (lanes = triangles) and the packet test (packet.hpp: lanes = rays).
 template <class V>
 struct WatertightFilter {
@@ -257,30 +234,10 @@ struct WatertightFilter {
         const R ok = V::lt(msum, limit);   // false for NaN and infinity
         return V::band(rej, ok);
     }
-    /// The bound |t| (1 + 2^-20) + FLT_MIN of the t-range test (see the file comment): a vertex value
-    /// above it (for tmax) or below its negation (for tmin) is certainly beyond t.
-    static DYNBVH_ALWAYS_INLINE R t_limit(R t) noexcept {
-        return V::madd(V::abs(t), V::set1(1.0f + 0x1p-20f), V::set1(std::numeric_limits<float>::min()));
-    }
-    /// The reciprocal the t-range test multiplies by: float(rcp_dz), or NaN (nothing rejected) outside
-    /// [2^-60, 2^60] in magnitude, where the bound's underflow terms are not covered.
-    static float t_rcp(double rcp_dz) noexcept {
-        const float r = float(rcp_dz), a = std::abs(r);
-        return a >= 0x1p-60f && a <= 0x1p60f ? r : std::numeric_limits<float>::quiet_NaN();
-    }
-    /// Lane mask of the pairs whose t is certainly above tmax or below tmin: za, zb, zc = the vertices'
-    /// v[kz] - org[kz] (float), rcp = t_rcp, hi = t_limit(tmax), lo = t_limit(tmin). NaN keeps a lane.
-    static DYNBVH_ALWAYS_INLINE R t_outside(R za, R zb, R zc, R rcp, R hi, R lo) noexcept {
-        const R qa = V::mul(za, rcp), qb = V::mul(zb, rcp), qc = V::mul(zc, rcp);
-        const R nlo = V::neg(lo);
-        const R above = V::band(V::band(V::gt(qa, hi), V::gt(qb, hi)), V::gt(qc, hi));
-        const R below = V::band(V::band(V::lt(qa, nlo), V::lt(qb, nlo)), V::lt(qc, nlo));
-        return V::bor(above, below);
-    }
 };
 
-/// tri::watertight on a block: the SIMD float filter (edge functions and t range), then the scalar test
-/// on the lanes it keeps (see the file comment for the exactness argument and the bounds).
+/// tri::watertight on a block: the SIMD float filter, then the scalar test on the lanes it keeps
+/// (see the file comment for the exactness argument and the bound).
 template <int L>
 struct BlockTest<tri::watertight, L> {
     using V = lanes_for<L>;   // L = 8: AVX where compiled in, else two SSE steps
@@ -297,23 +254,31 @@ struct BlockTest<tri::watertight, L> {
         oz_ = V::set1(pt.org[std::size_t(kz_)]);
         sx_ = V::set1(pt.sx);
         sy_ = V::set1(pt.sy);
-        rcp_ = V::set1(WatertightFilter<V>::t_rcp(pt.rcp_dz));
-        lo_ = WatertightFilter<V>::t_limit(V::set1(pt.tmin));
     }
 
-    /// Valid lanes the filter cannot reject by their edge functions (the scalar test misses every other
-    /// lane, whatever the interval).
-    DYNBVH_ALWAYS_INLINE unsigned candidates(const TriangleBlock<L>& b) const noexcept { return filter<false>(b, 0.0f); }
-    /// Valid lanes the filter cannot reject by their edge functions or their t range against
-    /// [tmin, tmax] (the scalar test with this tmax misses every other lane).
-    DYNBVH_ALWAYS_INLINE unsigned candidates(const TriangleBlock<L>& b, float tmax) const noexcept { return filter<true>(b, tmax); }
+    /// Valid lanes the filter cannot reject (the scalar test misses every other lane, whatever tmax).
+    DYNBVH_ALWAYS_INLINE unsigned candidates(const TriangleBlock<L>& b) const noexcept {
+        using F = WatertightFilter<V>;
+        unsigned rejected = 0;
+        for (int h = 0; h < L; h += V::n) {
+            // (one call per vertex, not a loop over arrays: GCC keeps such arrays on the stack)
+            const auto va = F::shear(V::sub(V::load(&b.v[0][kx_][h]), ox_), V::sub(V::load(&b.v[0][ky_][h]), oy_),
+                                     V::sub(V::load(&b.v[0][kz_][h]), oz_), sx_, sy_);
+            const auto vb = F::shear(V::sub(V::load(&b.v[1][kx_][h]), ox_), V::sub(V::load(&b.v[1][ky_][h]), oy_),
+                                     V::sub(V::load(&b.v[1][kz_][h]), oz_), sx_, sy_);
+            const auto vc = F::shear(V::sub(V::load(&b.v[2][kx_][h]), ox_), V::sub(V::load(&b.v[2][ky_][h]), oy_),
+                                     V::sub(V::load(&b.v[2][kz_][h]), oz_), sx_, sy_);
+            rejected |= V::bits(F::rejects(va, vb, vc)) << h;
+        }
+        return b.valid_mask() & ~rejected;
+    }
 
     template <bool AnyHit>
     DYNBVH_ALWAYS_INLINE bool test(const TriangleBlock<L>* blocks, std::size_t first, std::size_t end, float t_scale, float& tmax,
                                    float& tbox, std::uint32_t& best_prim, Hit<float>& hit) const {
         for (std::size_t i = first; i < end; ++i) {
             const TriangleBlock<L>& b = blocks[i];
-            for (unsigned m = candidates(b, tmax); m != 0; m &= m - 1) {
+            for (unsigned m = candidates(b); m != 0; m &= m - 1) {
                 const int k = std::countr_zero(m);
                 float t, u, v;
                 if (tri::watertight::test(pt, b.triangle(k), tmax, t, u, v) &&
@@ -325,29 +290,8 @@ struct BlockTest<tri::watertight, L> {
     }
 
 private:
-    template <bool Range>
-    DYNBVH_ALWAYS_INLINE unsigned filter(const TriangleBlock<L>& b, float tmax) const noexcept {
-        using F = WatertightFilter<V>;
-        unsigned rejected = 0;
-        [[maybe_unused]] const R hi = F::t_limit(V::set1(tmax));
-        [[maybe_unused]] const bool range = Range && tmax < std::numeric_limits<float>::infinity();   // after a first hit
-        for (int h = 0; h < L; h += V::n) {
-            // (one call per vertex, not a loop over arrays: GCC keeps such arrays on the stack)
-            const R za = V::sub(V::load(&b.v[0][kz_][h]), oz_), zb = V::sub(V::load(&b.v[1][kz_][h]), oz_),
-                    zc = V::sub(V::load(&b.v[2][kz_][h]), oz_);
-            const auto va = F::shear(V::sub(V::load(&b.v[0][kx_][h]), ox_), V::sub(V::load(&b.v[0][ky_][h]), oy_), za, sx_, sy_);
-            const auto vb = F::shear(V::sub(V::load(&b.v[1][kx_][h]), ox_), V::sub(V::load(&b.v[1][ky_][h]), oy_), zb, sx_, sy_);
-            const auto vc = F::shear(V::sub(V::load(&b.v[2][kx_][h]), ox_), V::sub(V::load(&b.v[2][ky_][h]), oy_), zc, sx_, sy_);
-            R rej = F::rejects(va, vb, vc);
-            if (range) rej = V::bor(rej, F::t_outside(za, zb, zc, rcp_, hi, lo_));
-            rejected |= V::bits(rej) << h;
-        }
-        return b.valid_mask() & ~rejected;
-    }
-
     int kx_, ky_, kz_;
     R ox_, oy_, oz_, sx_, sy_;
-    R rcp_, lo_;   // the t-range test's float(rcp_dz) (or NaN) and t_limit(tmin)
 };
 
 /// tri::moller_trumbore on a block: the scalar test's arithmetic lane by lane (same operations in the
