@@ -1,8 +1,8 @@
 // SPDX-License-Identifier: MIT
 /// @file traverse_wide.hpp
 /// Closest-hit and any-hit queries of one ray against a `WideBvh` (wide.hpp), with the same policies,
-/// contract and answers as the binary traversal (traverse.hpp), whose leaf test, pop-and-skip step and
-/// fixed/heap stack it shares. Included by wide.hpp: `#include <dynbvh/wide.hpp>` is enough.
+/// contract and answers as the binary traversal (traverse.hpp), whose leaf test and pop-and-skip step
+/// it shares (a fixed stack, a heap one for trees deeper than their depth field says). Included by wide.hpp: `#include <dynbvh/wide.hpp>` is enough.
 ///
 /// Each step tests all W child boxes of a node at once: with SSE (detail/simd.hpp) one instruction per
 /// slab plane for 4 slots, an 8-wide node in two SSE steps or one AVX step; elsewhere (or with
