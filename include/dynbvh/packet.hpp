@@ -284,7 +284,16 @@ struct PacketTraversal {
     alignas(64) float tmax[NZ];                 // the closest hit so far; -inf outside the group
     alignas(64) float sx[NZ], sy[NZ];           // watertight: shear (prepared's sx, sy)
     std::uint32_t best[NZ];
-    Hit<float> hit[NZ];
+    /// Per-lane hits, left uninitialised until begin_group (Hit's member initialisers would fill all N
+    /// on every packet, and begin_group sets them again).
+    struct LaneHits {
+        union {
+            Hit<float> h[NZ];
+        };
+        LaneHits() noexcept {}
+        DYNBVH_ALWAYS_INLINE Hit<float>& operator[](int k) noexcept { return h[k]; }
+        DYNBVH_ALWAYS_INLINE const Hit<float>& operator[](int k) const noexcept { return h[k]; }
+    } hit;
     union PtStore {
         PtStore() noexcept {}
         TriPrepared value;
@@ -369,14 +378,10 @@ struct PacketTraversal {
         const float* d[3] = {pk.dir_x, pk.dir_y, pk.dir_z};
         alignas(64) float gm[NZ];   // all bits set in the group's lanes
         const float on = std::bit_cast<float>(~std::uint32_t(0));
-        for (int k = 0; k < N; ++k) {
-            if (!(group >> k & 1u)) {
-                tmax[k] = -inf;
-                gm[k] = 0.0f;
-                continue;
-            }
-            gm[k] = on;
-            tmax[k] = pk.tmax[k];
+        for (int k = 0; k < N; ++k) {   // (no branches: the group's lanes are any subset)
+            const bool in = (group >> k & 1u) != 0;
+            gm[k] = in ? on : 0.0f;
+            tmax[k] = in ? pk.tmax[k] : -inf;
             best[k] = invalid_prim;
             hit[k] = Hit<float>{};
         }

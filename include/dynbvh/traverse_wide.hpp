@@ -1,8 +1,8 @@
 // SPDX-License-Identifier: MIT
 /// @file traverse_wide.hpp
 /// Closest-hit and any-hit queries of one ray against a `WideBvh` (wide.hpp), with the same policies,
-/// contract and answers as the binary traversal (traverse.hpp), whose leaf test, pop-and-skip step and
-/// fixed/heap stack it shares. Included by wide.hpp: `#include <dynbvh/wide.hpp>` is enough.
+/// contract and answers as the binary traversal (traverse.hpp), whose leaf test and pop-and-skip step
+/// it shares (a fixed stack, a heap one for trees deeper than their depth field says). Included by wide.hpp: `#include <dynbvh/wide.hpp>` is enough.
 ///
 /// Each step tests all W child boxes of a node at once: with SSE (detail/simd.hpp) one instruction per
 /// slab plane for 4 slots, an 8-wide node in two SSE steps or one AVX step; elsewhere (or with
@@ -225,9 +225,12 @@ template <class Policy, bool AnyHit, int Oct, class WN, class P, class S = typen
           class I = typename WN::index_type, int W = WN::width, class Source>
 bool wide_traverse_octant(const WideBvh<WN, P>& bvh, const Source tris, const Ray<S>& ray,
                           const S t_scale,
-                          const WideBoxTest<typename Policy::box_test, S, W> wb, Hit<S>& hit,
+                          const WideBoxTest<typename Policy::box_test, S, W>& wb_in, Hit<S>& hit,
                           WideStackEntry<I, S>* const stack, const std::size_t cap, const I start, const I start_count,
                           const S tmax0, const std::uint32_t best0) {
+    // A local copy: its registers need not be reloaded after stores (the SIMD types may alias anything),
+    // and taking it by reference spares the caller a copy of the whole box test on every ray.
+    const WideBoxTest<typename Policy::box_test, S, W> wb = wb_in;
     using Box = typename Policy::box_test;
     using Tri = typename Policy::triangle_test;
     using Entry = WideStackEntry<I, S>;
@@ -292,22 +295,44 @@ bool wide_traverse_octant(const WideBvh<WN, P>& bvh, const Source tris, const Ra
 #pragma GCC diagnostic pop
 #endif
 
-/// Stack and octant dispatch around wide_traverse_octant for a prepared ray.
+/// Octant dispatch of wide_traverse_octant from the root for a prepared ray, on `stack` (cap entries);
+/// false when that stack would overflow.
+template <class Policy, bool AnyHit, class WN, class P, class S, class I, int W, class Source>
+DYNBVH_ALWAYS_INLINE bool wide_run_on(const WideBvh<WN, P>& bvh, const Source tris, const Ray<S>& ray,
+                                      const WideBoxTest<typename Policy::box_test, S, W>& wb, S t_scale, int octant,
+                                      WideStackEntry<I, S>* stack, std::size_t cap, Hit<S>& hit) {
+    return dispatch_octant(octant, [&](auto oct) {
+        return wide_traverse_octant<Policy, AnyHit, decltype(oct)::value>(bvh, tris, ray, t_scale, wb, hit, stack, cap, I(0), I(0),
+                                                                          ray.tmax, invalid_prim);
+    });
+}
+
+/// The heap-stack retry of wide_run (a tree whose depth field understates its depth; kept off the hot path).
+template <class Policy, bool AnyHit, class WN, class P, class S, class I, int W, class Source>
+DYNBVH_NOINLINE Hit<S> wide_run_heap(const WideBvh<WN, P>& bvh, const Source tris, const Ray<S>& ray,
+                                     const WideBoxTest<typename Policy::box_test, S, W>& wb, S t_scale, int octant) {
+    // Each node's children are pushed at most once, W - 1 entries per node.
+    std::vector<WideStackEntry<I, S>> heap(std::size_t(W - 1) * (bvh.nodes.size() + 1));
+    Hit<S> hit;
+    wide_run_on<Policy, AnyHit, WN, P, S, I, W>(bvh, tris, ray, wb, t_scale, octant, heap.data(), heap.size(), hit);
+    return hit;
+}
+
+/// Stack and octant dispatch around wide_traverse_octant for a prepared ray (inlined into the caller:
+/// the per-ray set-up is a large part of a primary ray's cost, and each call level adds a frame).
 template <class Policy, bool AnyHit, class WN, class P, class S = typename WN::scalar_type, class I = typename WN::index_type,
           int W = WN::width, class Source>
-Hit<S> wide_run(const WideBvh<WN, P>& bvh, const Source tris, const Ray<S>& ray,
-                const WideBoxTest<typename Policy::box_test, S, W>& wb, S t_scale, int octant) {
-    using Entry = WideStackEntry<I, S>;
-    auto run = [&](Entry* stack, std::size_t cap, Hit<S>& hit) {
-        return dispatch_octant(octant, [&](auto oct) {
-            return wide_traverse_octant<Policy, AnyHit, decltype(oct)::value>(bvh, tris, ray, t_scale, wb, hit, stack, cap, I(0),
-                                                                              I(0), ray.tmax, invalid_prim);
-        });
-    };
+DYNBVH_ALWAYS_INLINE Hit<S> wide_run(const WideBvh<WN, P>& bvh, const Source tris, const Ray<S>& ray,
+                                     const WideBoxTest<typename Policy::box_test, S, W>& wb, S t_scale, int octant) {
     // At most W - 1 entries per wide level: wide depth < binary depth <= max_depth.
     constexpr std::size_t fixed_cap = std::size_t(W - 1) * std::size_t(max_depth);
-    // Heap fallback: each node's children are pushed at most once, W - 1 entries per node.
-    return run_with_stack<Entry, fixed_cap, S>(bvh.depth < max_depth, std::size_t(W - 1) * (bvh.nodes.size() + 1), run);
+    if (bvh.depth < max_depth) [[likely]] {
+        WideStackEntry<I, S> stack[fixed_cap];
+        Hit<S> hit;
+        if (wide_run_on<Policy, AnyHit, WN, P, S, I, W>(bvh, tris, ray, wb, t_scale, octant, stack, fixed_cap, hit)) [[likely]]
+            return hit;
+    }
+    return wide_run_heap<Policy, AnyHit, WN, P, S, I, W>(bvh, tris, ray, wb, t_scale, octant);
 }
 
 template <class Policy, bool AnyHit, class WN, class P, class S = typename WN::scalar_type, class I = typename WN::index_type,
