@@ -337,24 +337,17 @@ private:
         return r;
     }
 
-    /// Triangle::is_finite without its nine branches (this scan runs every frame): x - x is +0 for a
-    /// finite x and NaN otherwise, and a sum with a NaN is NaN.
-    static bool finite(const triangle_type& t) noexcept {
-        const Vec3<scalar_type> z = (t.p0 - t.p0) + (t.p1 - t.p1) + (t.p2 - t.p2);
-        return (z.x == 0) & (z.y == 0) & (z.z == 0);
-    }
-
     /// Indices of the triangles with a NaN or infinite vertex, ascending (the builders exclude them).
     template <class Source>
     std::vector<std::uint32_t> nonfinite_ids(const Source tris) const {
         const std::size_t count = ex_.reduce(std::size_t(0), tris.size(), std::size_t(0),
-                                             [&](std::size_t i) { return std::size_t(!finite(tris[i])); },
+                                             [&](std::size_t i) { return std::size_t(!tris[i].is_finite()); },
                                              [](std::size_t a, std::size_t b) { return a + b; });
         std::vector<std::uint32_t> ids;
         if (count == 0) return ids;
         ids.reserve(count);
         for (std::size_t i = 0; i < tris.size(); ++i)
-            if (!finite(tris[i])) ids.push_back(static_cast<std::uint32_t>(i));
+            if (!tris[i].is_finite()) ids.push_back(static_cast<std::uint32_t>(i));
         return ids;
     }
 

@@ -118,13 +118,6 @@ inline AABB<T> triangle_box(const Triangle<T>& t) noexcept {
     return {dynbvh::min(dynbvh::min(t.p0, t.p1), t.p2), dynbvh::max(dynbvh::max(t.p0, t.p1), t.p2)};
 }
 
-/// True when every vertex coordinate is finite (x - x is 0 for finite x, NaN otherwise).
-template <class T>
-inline bool finite_triangle(const Triangle<T>& t) noexcept {
-    const Vec3<T> z = (t.p0 - t.p0) + (t.p1 - t.p1) + (t.p2 - t.p2);
-    return z.x + z.y + z.z == T(0);
-}
-
 /// The finite triangles of `tris` sorted by the Morton code of their box centres: the keys and
 /// order make_references + morton::sort_references give, without the reference boxes (the tree reads
 /// each triangle once, later, where it packs the leaves). Two passes over the triangles (centroid
@@ -148,7 +141,7 @@ Sorted<Key> sort_triangles(Source tris, const Exec& ex) {
         Acc a = empty;
         for (std::size_t i = std::min(n, k * chunk), e = std::min(n, i + chunk); i < e; ++i) {
             const Triangle<T>& t = tris[i];
-            if (finite_triangle(t)) {
+            if (t.is_finite()) {
                 const AABB<T> b = triangle_box(t);
                 const Vec3<T> c = (b.min + b.max) * T(0.5);
                 a.lo = dynbvh::min(a.lo, c);
@@ -177,7 +170,7 @@ Sorted<Key> sort_triangles(Source tris, const Exec& ex) {
     else
         ex.for_each(0, n, [&](std::size_t i) {
             const Triangle<T>& t = tris[i];
-            keys[i] = finite_triangle(t) ? morton::encode<Key>(q, triangle_box(t).center()) : beyond;
+            keys[i] = t.is_finite() ? morton::encode<Key>(q, triangle_box(t).center()) : beyond;
         });
     // Step 3: sort (the original positions are the triangle ids), cut the non-finite tail.
     out.prim = radix_sort_order(out.keys, ex, morton::code_bits<Key> + (acc.bad != 0 ? 1 : 0));

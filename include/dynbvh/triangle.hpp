@@ -29,8 +29,13 @@ struct Triangle {
     constexpr Vec3<T> normal() const noexcept { return cross(p1 - p0, p2 - p0); }
     /// Area in square scene units.
     T area() const noexcept { return T(0.5) * length(normal()); }
-    /// True when no vertex has a NaN or infinite coordinate (builders leave the others out).
-    bool is_finite() const noexcept { return dynbvh::is_finite(p0) && dynbvh::is_finite(p1) && dynbvh::is_finite(p2); }
+    /// True when no vertex has a NaN or infinite coordinate (builders leave the others out). Branch-free,
+    /// as the per-frame scans need it: x - x is +0 for a finite x and NaN otherwise, and a sum with a
+    /// NaN is NaN.
+    bool is_finite() const noexcept {
+        const Vec3<T> z = (p0 - p0) + (p1 - p1) + (p2 - p2);
+        return z.x + z.y + z.z == T(0);
+    }
 };
 
 /// Single-precision triangle (36 bytes): what the loaders produce.

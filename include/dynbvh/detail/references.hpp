@@ -92,9 +92,7 @@ References<detail::source_scalar_t<Source>> make_references(Source tris, const E
             const Vec3<T> hi = dynbvh::max(dynbvh::max(t.p0, t.p1), t.p2);
             box[i] = {lo, hi};
             prim[i] = static_cast<std::uint32_t>(i);
-            // x - x is 0 for finite x and NaN for infinities and NaN (min/max above may drop a NaN).
-            const Vec3<T> z = (t.p0 - t.p0) + (t.p1 - t.p1) + (t.p2 - t.p2);
-            if (z.x + z.y + z.z == T(0)) {
+            if (t.is_finite()) {   // (not from lo, hi: min/max above may drop a NaN)
                 const Vec3<T> c = (lo + hi) * T(0.5);
                 a.lo = dynbvh::min(a.lo, lo);
                 a.hi = dynbvh::max(a.hi, hi);
