@@ -213,6 +213,19 @@ struct ClosedMesh {
     std::vector<Vec3f> inside;
 };
 
+/// The watertightness probes of closed mesh `c`: from each of its first `origins` inside points, one
+/// ray at every vertex, then one at every edge midpoint (a watertight traversal hits every one).
+inline std::vector<Rayf> inside_rays(const ClosedMesh& c, std::size_t origins) {
+    const auto edges = edges_of(c.mesh);
+    std::vector<Rayf> rs;
+    for (std::size_t o = 0; o < origins; ++o) {
+        const Vec3f org = c.inside[o];
+        for (const Vec3f& v : c.mesh.vertices) rs.push_back({org, v - org});
+        for (const auto& e : edges) rs.push_back({org, (c.mesh.vertices[e[0]] + c.mesh.vertices[e[1]]) * 0.5f - org});
+    }
+    return rs;
+}
+
 inline ClosedMesh closed_cube(int k) {
     ClosedMesh c{"cube " + std::to_string(k) + "x" + std::to_string(k) + " per face", cube_mesh(k), {}};
     Rng rng(101);

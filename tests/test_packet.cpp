@@ -301,17 +301,15 @@ TEST_CASE("watertightness through packets: rays from inside closed meshes at eve
     for (const test::ClosedMesh& c : {test::closed_sphere(20, 40), test::closed_cube(6), test::closed_torus(24, 12)}) {
         const auto tris = c.mesh.triangles();
         const std::span<const Trianglef> ts(tris);
-        const auto edges = test::edges_of(c.mesh);
         std::size_t rays = 0, escaped = 0;
+        // per origin, as packets of 16 (the last of each origin partial)
+        const std::size_t per_origin = test::inside_rays(c, 1).size();
+        const std::vector<Rayf> all = test::inside_rays(c, test::sanitized() ? 1 : 3);
         test::for_each_builder(ts, exec::serial{}, [&](std::size_t, const auto& bvh, bool) {
             const auto b8 = make_wide_blocks<8>(bvh, ts);
             const auto b4 = make_wide_blocks<4>(bvh, ts);
-            const std::size_t origins = test::sanitized() ? 1 : 3;
-            for (std::size_t o = 0; o < origins; ++o) {
-                const Vec3f org = c.inside[o];
-                std::vector<Rayf> rs;
-                for (const Vec3f& v : c.mesh.vertices) rs.push_back({org, v - org});
-                for (const auto& e : edges) rs.push_back({org, (c.mesh.vertices[e[0]] + c.mesh.vertices[e[1]]) * 0.5f - org});
+            for (std::size_t first = 0; first < all.size(); first += per_origin) {
+                const std::span<const Rayf> rs(all.data() + first, per_origin);
                 for (std::size_t i = 0; i < rs.size(); i += 16) {
                     RayPacket<float, 16> p;
                     const std::uint32_t n = std::uint32_t(std::min<std::size_t>(16, rs.size() - i));
@@ -330,12 +328,8 @@ TEST_CASE("watertightness through packets: rays from inside closed meshes at eve
 }
 
 TEST_CASE("packets on trees deeper than the fixed stack: heap stack, same answers") {
-    std::vector<Trianglef> tris;
     const int levels = 600;
-    for (int i = 0; i < levels; ++i) {
-        const float z = float(i);
-        tris.push_back({{-1, -1, z}, {3, -1, z}, {-1, 3, z}});
-    }
+    const std::vector<Trianglef> tris = test::stacked_triangles(levels);
     const std::span<const Trianglef> ts(tris);
     const auto deep = test::caterpillar_build<Node<>, prim::indexed>(ts);
     const auto w = make_wide_blocks<8>(deep, ts);

@@ -615,13 +615,8 @@ TEST_CASE("axis-parallel rays with +-0 components through vertices, from everywh
 }
 
 TEST_CASE("trees deeper than max_depth and a wrong depth field: heap stack, same answers") {
-    std::vector<Trianglef> tris;
-    // 600 levels: deeper than max_depth even for 8-wide nodes (about 7 binary levels per node)
     const int levels = 600;
-    for (int i = 0; i < levels; ++i) {
-        const float z = float(i);
-        tris.push_back({{-1, -1, z}, {3, -1, z}, {-1, 3, z}});
-    }
+    const std::vector<Trianglef> tris = test::stacked_triangles(levels);
     const std::span<const Trianglef> ts(tris);
     const auto deep = test::caterpillar_build<Node<>, prim::indexed>(ts);
     auto check = [&](auto w) {

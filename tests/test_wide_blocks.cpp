@@ -256,22 +256,15 @@ TEST_CASE("watertightness through block trees: rays from inside closed meshes at
     for (const test::ClosedMesh& c : {test::closed_sphere(20, 40), test::closed_cube(6), test::closed_torus(24, 12)}) {
         const auto tris = c.mesh.triangles();
         const std::span<const Trianglef> ts(tris);
-        const auto edges = test::edges_of(c.mesh);
         std::size_t rays = 0, escaped = 0;
+        const std::vector<Rayf> probes = test::inside_rays(c, test::sanitized() ? 2 : 6);
         test::for_each_builder(ts, exec::serial{}, [&](std::size_t, const auto& bvh, bool) {
             const auto b8 = make_wide_blocks<8>(bvh, ts);
             const auto b4 = make_wide_blocks<4>(bvh, ts);
-            const std::size_t origins = test::sanitized() ? 2 : 6;
-            for (std::size_t o = 0; o < origins; ++o) {
-                const Vec3f org = c.inside[o];
-                auto shoot = [&](const Vec3f& target) {
-                    const Rayf r{org, target - org};
-                    rays += 2;
-                    escaped += intersect(b8, ts, r) ? 0 : 1;
-                    escaped += occluded(b4, ts, r) ? 0 : 1;
-                };
-                for (const Vec3f& v : c.mesh.vertices) shoot(v);
-                for (const auto& e : edges) shoot((c.mesh.vertices[e[0]] + c.mesh.vertices[e[1]]) * 0.5f);
+            for (const Rayf& r : probes) {
+                rays += 2;
+                escaped += intersect(b8, ts, r) ? 0 : 1;
+                escaped += occluded(b4, ts, r) ? 0 : 1;
             }
         });
         MESSAGE(c.name << ": " << rays << " rays from inside at vertices and edge midpoints, " << escaped << " escaped");
@@ -281,12 +274,8 @@ TEST_CASE("watertightness through block trees: rays from inside closed meshes at
 }
 
 TEST_CASE("block trees deeper than max_depth: heap stack, same answers") {
-    std::vector<Trianglef> tris;
     const int levels = 600;
-    for (int i = 0; i < levels; ++i) {
-        const float z = float(i);
-        tris.push_back({{-1, -1, z}, {3, -1, z}, {-1, 3, z}});
-    }
+    const std::vector<Trianglef> tris = test::stacked_triangles(levels);
     const std::span<const Trianglef> ts(tris);
     const auto deep = test::caterpillar_build<Node<>, prim::indexed>(ts);
     const auto w = make_wide_blocks<8>(deep, ts);
