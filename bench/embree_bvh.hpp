@@ -76,6 +76,20 @@ public:
     /// Writes each active lane's hit (or a miss) to out[k].
     template <int N>
     void intersect_packet(const Rayf* rays, const int* valid, Hitf* out) const {
+        intersect_lanes<N>(scene_, rays, valid, out);
+    }
+    /// rtcOccluded8 / rtcOccluded16 on N rays: blocked[k] = whether active lane k hits anything (0 for
+    /// inactive lanes).
+    template <int N>
+    void occluded_packet(const Rayf* rays, const int* valid, std::uint8_t* blocked) const {
+        occluded_lanes<N>(scene_, rays, valid, blocked);
+    }
+
+    /// rtcIntersect8 / rtcIntersect16 of N rays in `scene` (coherent context): out[k] = lane k's hit
+    /// (prim = Embree's primID) or a miss; instance[k] (when given) = the hit's instID[0] (two-level
+    /// scenes), RTC_INVALID_GEOMETRY_ID for a miss.
+    template <int N>
+    static void intersect_lanes(RTCScene scene, const Rayf* rays, const int* valid, Hitf* out, std::uint32_t* instance = nullptr) {
         static_assert(N == 8 || N == 16, "Embree packets of 8 or 16 rays");
         using RH = std::conditional_t<N == 8, RTCRayHit8, RTCRayHit16>;
         alignas(64) RH rh;
@@ -84,34 +98,44 @@ public:
         for (int k = 0; k < N; ++k) {
             rh.hit.geomID[k] = RTC_INVALID_GEOMETRY_ID;
             rh.hit.primID[k] = RTC_INVALID_GEOMETRY_ID;
+            rh.hit.instID[0][k] = RTC_INVALID_GEOMETRY_ID;
         }
         RTCIntersectContext ctx = coherent_context();
-        if constexpr (N == 8) rtcIntersect8(v, scene_, &ctx, &rh);
-        else rtcIntersect16(v, scene_, &ctx, &rh);
+        if constexpr (N == 8) rtcIntersect8(v, scene, &ctx, &rh);
+        else rtcIntersect16(v, scene, &ctx, &rh);
         for (int k = 0; k < N; ++k) {
             Hitf h;
-            if (valid[k] && rh.hit.geomID[k] != RTC_INVALID_GEOMETRY_ID) {
+            const bool hit = valid[k] && rh.hit.geomID[k] != RTC_INVALID_GEOMETRY_ID;
+            if (hit) {
                 h.t = rh.ray.tfar[k];
                 h.u = rh.hit.u[k];
                 h.v = rh.hit.v[k];
                 h.prim = rh.hit.primID[k];
             }
             out[k] = h;
+            if (instance) instance[k] = hit ? rh.hit.instID[0][k] : RTC_INVALID_GEOMETRY_ID;
         }
     }
-    /// rtcOccluded8 / rtcOccluded16 on N rays: blocked[k] = whether active lane k hits anything (0 for
-    /// inactive lanes).
+    /// rtcOccluded8 / rtcOccluded16 of N rays in `scene`: blocked[k] as occluded_packet.
     template <int N>
-    void occluded_packet(const Rayf* rays, const int* valid, std::uint8_t* blocked) const {
+    static void occluded_lanes(RTCScene scene, const Rayf* rays, const int* valid, std::uint8_t* blocked) {
         static_assert(N == 8 || N == 16, "Embree packets of 8 or 16 rays");
         using R = std::conditional_t<N == 8, RTCRay8, RTCRay16>;
         alignas(64) R ray;
         alignas(64) int v[N];
         fill_lanes<N>(ray, rays, valid, v);
         RTCIntersectContext ctx = coherent_context();
-        if constexpr (N == 8) rtcOccluded8(v, scene_, &ctx, &ray);
-        else rtcOccluded16(v, scene_, &ctx, &ray);
+        if constexpr (N == 8) rtcOccluded8(v, scene, &ctx, &ray);
+        else rtcOccluded16(v, scene, &ctx, &ray);
         for (int k = 0; k < N; ++k) blocked[k] = valid[k] && ray.tfar[k] < 0 ? 1 : 0;
+    }
+    /// Up to 16 rays (rays.size() <= 16) as 16 lanes r[], valid[k] = 1 for the given ones, the rest
+    /// inactive default rays.
+    static void lanes16(std::span<const Rayf> rays, Rayf* r, int* valid) {
+        for (std::size_t k = 0; k < 16; ++k) {
+            valid[k] = k < rays.size();
+            r[k] = valid[k] ? rays[k] : Rayf{};
+        }
     }
     bool occluded(const Rayf& r) const {
         RTCIntersectContext ctx;

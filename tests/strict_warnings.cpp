@@ -219,6 +219,19 @@ double everything() {
     sum += double(make_triangles<float, std::uint32_t>(vf, i32).size() + make_triangles<double, std::size_t>(vd, i64).size() +
                   make_triangles<float, int>(vf, isigned).size());
 
+    // Two-level scenes (two_level.hpp): single rays and packets, float and double.
+    TwoLevel<> tl;
+    const std::vector<Triangle<float>> one(1);
+    tl.add_object(one);
+    tl.commit();
+    const RayPacket<float, 16> tp16;
+    const RayPacket<float, 8> tp8;
+    sum += double(tl.intersect(Ray<float>{}).t) + double(tl.intersect(tp16).hit(0).instance) + double(tl.occluded(tp8, 0x3u));
+    sum += double(tl.intersect<trace::fast>(tp8).t[1]) + double(tl.occluded<trace::fast>(tp16));
+    TwoLevel<builder::lbvh, Node<double>> td;
+    const RayPacket<double, 8> dp;
+    sum += double(td.intersect(dp).t[0]) + double(td.occluded(dp)) + double(td.occluded(Ray<double>{}));
+
     // The loaders.
     std::string warnings;
     const io::Mesh m = io::read_mesh("scene.ply", &warnings);

@@ -11,6 +11,7 @@
 
 #include <dynbvh/affine.hpp>
 #include <dynbvh/mesh.hpp>
+#include <dynbvh/packet.hpp>
 #include <dynbvh/two_level.hpp>
 
 using namespace dynbvh;
@@ -147,6 +148,72 @@ std::vector<Rayf> scene_rays(const Scene& scene, std::size_t n, std::uint64_t se
     return rays;
 }
 
+/// Bit for bit the same hit, instance included.
+bool identical(const InstanceHit<float>& a, const InstanceHit<float>& b) {
+    return same_bits(a.t, b.t) && same_bits(a.u, b.u) && same_bits(a.v, b.v) && a.prim == b.prim && a.instance == b.instance;
+}
+
+/// Packets of N of `rays` (in order, so coherent runs stay together) under several lane masks and packet
+/// knobs: every active lane gets the single-ray intersect / occluded answer bit for bit, every inactive
+/// lane the miss value.
+template <int N, class Scene>
+std::size_t packet_mismatches(const Scene& scene, const std::vector<Rayf>& rays, const std::string& what) {
+    std::size_t bad = 0;
+    const std::uint32_t masks[] = {all_lanes<N>, 0x5555u & all_lanes<N>, 0x0f0fu & all_lanes<N>, 1u, 0u};
+    const PacketConfig cfgs[] = {{}, {.min_rays = 1, .interval = false}, {.min_rays = N + 1}};
+    for (std::size_t first = 0; first < rays.size(); first += N) {
+        RayPacket<float, N> p;
+        for (int k = 0; k < N; ++k) p.set(k, rays[(first + std::size_t(k)) % rays.size()]);
+        for (const std::uint32_t m : masks)
+            for (const PacketConfig& cfg : cfgs) {
+                const InstanceHitPacket<float, N> h = scene.intersect(p, m, cfg);
+                const std::uint32_t occ = scene.occluded(p, m, cfg);
+                for (int k = 0; k < N; ++k) {
+                    const bool on = (m >> k & 1u) != 0;
+                    const InstanceHit<float> e = on ? scene.intersect(p.ray(k)) : InstanceHit<float>{};
+                    const bool eo = on && scene.occluded(p.ray(k));
+                    if (identical(h.hit(k), e) && bool(occ >> k & 1u) == eo) continue;
+                    if (++bad <= 3)
+                        MESSAGE(what, " packet of ", N, " lane ", k, " mask ", m, ": ray ", describe(p.ray(k)), ": instance ",
+                                h.instance[k], " prim ", h.prim[k], " t ", h.t[k], " / single ray ", e.instance, " prim ", e.prim,
+                                " t ", e.t, "; occluded ", (occ >> k & 1u), " / ", eo);
+                }
+            }
+    }
+    return bad;
+}
+
+/// Coherent packets: 4x4 tiles of rays from a point towards the neighbourhood of an instance (as a
+/// camera's tiles), some with clipped intervals.
+template <class Scene>
+std::vector<Rayf> tile_rays(const Scene& scene, std::size_t tiles, std::uint64_t seed) {
+    Rng r(seed);
+    std::vector<Rayf> rays;
+    if (scene.top().empty()) return rays;
+    const float reach = length(scene.top().bounds().diagonal()) + 10;
+    for (std::size_t i = 0; i < tiles; ++i) {
+        const auto& inst = scene.instances()[r.next() % scene.instance_count()];
+        const Vec3f target = inst.transform.point(Vec3f{});
+        const Vec3f org = target + Vec3f{r.uniform(-1, 1), r.uniform(-1, 1), r.uniform(-1, 1)} * reach;
+        const float spread = r.uniform(0.001f, 0.05f) * reach;
+        for (int y = 0; y < 4; ++y)
+            for (int x = 0; x < 4; ++x) {
+                Rayf ray{org, target + Vec3f{float(x) - 1.5f, float(y) - 1.5f, 0.5f * float(x - y)} * spread - org};
+                if (i % 4 == 3) ray.tmax = 0.9f;
+                rays.push_back(ray);
+            }
+    }
+    return rays;
+}
+
+template <class Scene>
+void check_packets(const Scene& scene, const std::vector<Rayf>& rays, const std::string& what) {
+    std::vector<Rayf> all = tile_rays(scene, sanitizer_scaled(std::size_t(12)), 3);
+    all.insert(all.end(), rays.begin(), rays.end());
+    const std::size_t bad = packet_mismatches<16>(scene, all, what) + packet_mismatches<8>(scene, all, what);
+    CHECK_MESSAGE(bad == 0, what, ": ", bad, " packet lanes differ from the single-ray query");
+}
+
 template <class Scene>
 void check_scene(const Scene& scene, std::uint64_t seed, const std::string& what, std::size_t n = 300) {
     std::size_t bad = 0, hits = 0, checked = 0;
@@ -164,6 +231,7 @@ void check_scene(const Scene& scene, std::uint64_t seed, const std::string& what
     }
     CHECK_MESSAGE(bad == 0, what, ": ", bad, " of ", checked, " rays differ from brute force");
     CHECK_MESSAGE(hits * 4 > checked, what, ": only ", hits, " of ", checked, " rays hit");
+    check_packets(scene, scene_rays(scene, sanitizer_scaled(n / 3), seed + 7), what);
 }
 
 std::vector<Trianglef> plane_mesh() {   // a 4x4 grid of quads in z = 0 (shared edges and vertices)
@@ -298,6 +366,35 @@ TEST_CASE("TwoLevel: many instances of one object, overlapping, with top leaves 
     for (const auto& n : scene.top().nodes) multi = multi || n.count > 1;
     CHECK(multi);
     check_scene(scene, 5, "300 balls", 400);
+}
+
+TEST_CASE("TwoLevel: an exact tie between instances goes to the larger instance index, in every query") {
+    const auto ball = sphere(8, 16);
+    auto ball_and_speck = ball;   // the same triangles first, and one far away: a larger box
+    ball_and_speck.push_back({{6, 6, 6}, {6.1f, 6, 6}, {6, 6.1f, 6}});
+    TwoLevel<builder::ploc, Node<>, prim::indexed, exec::serial> scene;
+    scene.add_object(ball);
+    scene.add_object(ball_and_speck);
+    Rng r(11);
+    const Affinef a = random_transform(r, {0, 0, 0}, 1, false), b = random_transform(r, {15, 0, 0}, 1, true);
+    // instances 0 and 2 hold the same ball at the same place (the same object rays: the same t, the same
+    // triangle); 2's larger box is entered first, so a traversal taking the last hit found would answer 0
+    const std::vector<Instance<float>> inst = {{0, a}, {0, b}, {1, a}};
+    scene.set_instances(inst);
+    scene.commit();
+    std::vector<Rayf> rays = tile_rays(scene, 8, 5);
+    std::size_t ties = 0, bad = 0;
+    for (const Rayf& ray : rays) {
+        const InstanceHit<float> h = scene.intersect(ray), e = reference(scene, ray);
+        if (!identical(h, e) || !identical(scene.brute_force_intersect(ray), e)) ++bad;
+        if (e && e.instance != 1) {
+            ++ties;
+            if (e.instance != 2) ++bad;
+        }
+    }
+    CHECK(bad == 0);
+    CHECK(ties > 10);
+    CHECK(packet_mismatches<16>(scene, rays, "ties") == 0);
 }
 
 TEST_CASE("TwoLevel: a rigid update only moves instances; object trees are reused untouched") {

@@ -297,7 +297,7 @@ public:
         Rayf r[16];
         int valid[16];
         Hitf h[16];
-        lanes16(rays, r, valid);
+        bench::EmbreeBvh::lanes16(rays, r, valid);
         bvh_.intersect_packet<16>(r, valid, h);
         std::copy_n(h, rays.size(), out.begin());
     }
@@ -306,19 +306,12 @@ public:
         Rayf r[16];
         int valid[16];
         std::uint8_t b[16];
-        lanes16(rays, r, valid);
+        bench::EmbreeBvh::lanes16(rays, r, valid);
         bvh_.occluded_packet<16>(r, valid, b);
         std::copy_n(b, rays.size(), out.begin());
     }
 
 private:
-    /// rays (at most 16) as 16 lanes, the rest inactive.
-    static void lanes16(std::span<const Rayf> rays, Rayf* r, int* valid) {
-        for (std::size_t k = 0; k < 16; ++k) {
-            valid[k] = k < rays.size();
-            r[k] = valid[k] ? rays[k] : Rayf{};
-        }
-    }
     bench::EmbreeBvh bvh_;
     const Backend& backend_;
     bool packets_;

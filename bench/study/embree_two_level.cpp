@@ -7,11 +7,13 @@
 #if defined(DYNBVH_STUDY_EMBREE)
 #include <embree3/rtcore.h>
 
+#include <algorithm>
 #include <cstring>
 #include <vector>
 
 #include <dynbvh/affine.hpp>
 
+#include "../embree_bvh.hpp"
 #include "dyn_accel.hpp"
 #endif
 
@@ -54,7 +56,7 @@ class EmbreeTwoLevelAccel final : public Accel {
     };
 
 public:
-    EmbreeTwoLevelAccel(const Backend& backend) : backend_(backend) {
+    EmbreeTwoLevelAccel(const BuilderSpec& spec, const Backend& backend) : backend_(backend), packets_(spec.packets) {
         const std::string cfg = "threads=" + std::to_string(backend.threads() > 0 ? backend.threads() : 0) + ",set_affinity=0";
         device_ = rtcNewDevice(cfg.c_str());
         if (!device_) throw std::runtime_error("embree-two-level: rtcNewDevice failed");
@@ -97,6 +99,14 @@ public:
         fresh_ = false;
     }
     void trace(std::span<const Trianglef>, const RayGen& gen, std::span<std::uint32_t> out) override {
+        if (packets_) {   // rtcIntersect16 on 4x4 pixels, as our two-level's packets
+            trace_tiles_packets<16>(backend_, gen, out, [&](const Rayf* rays, const int* valid, std::uint32_t* prims) {
+                Hitf h[16];
+                hits16(rays, valid, h);
+                for (int k = 0; k < 16; ++k) prims[k] = h[k].prim;
+            });
+            return;
+        }
         trace_tiles(backend_, gen, out, [&](const Rayf& r) { return hit(r).prim; });
     }
     std::optional<double> sah() const override { return std::nullopt; }
@@ -110,8 +120,38 @@ public:
         rtcOccluded1(top_, &ctx, &ray);
         return ray.tfar < 0;
     }
+    /// rtcIntersect16 / rtcOccluded16 when the study traces packets, else ray by ray.
+    void intersect_packet(std::span<const Trianglef> tris, std::span<const Rayf> rays, std::span<Hitf> out) const override {
+        if (!packets_) return Accel::intersect_packet(tris, rays, out);
+        Rayf r[16];
+        int valid[16];
+        Hitf h[16];
+        bench::EmbreeBvh::lanes16(rays, r, valid);
+        hits16(r, valid, h);
+        std::copy_n(h, rays.size(), out.begin());
+    }
+    void occluded_packet(std::span<const Trianglef> tris, std::span<const Rayf> rays, std::span<std::uint8_t> out) const override {
+        if (!packets_) return Accel::occluded_packet(tris, rays, out);
+        Rayf r[16];
+        int valid[16];
+        std::uint8_t b[16];
+        bench::EmbreeBvh::lanes16(rays, r, valid);
+        bench::EmbreeBvh::occluded_lanes<16>(top_, r, valid, b);
+        std::copy_n(b, rays.size(), out.begin());
+    }
 
 private:
+    /// rtcIntersect16 on the top scene; prim = the frame's triangle index (the slot's first + primID).
+    void hits16(const Rayf* rays, const int* valid, Hitf* out) const {
+        std::uint32_t inst[16];
+        bench::EmbreeBvh::intersect_lanes<16>(top_, rays, valid, out, inst);
+        for (int k = 0; k < 16; ++k)
+            if (out[k].prim != invalid_prim) {
+                if (inst[k] < slots_.size()) out[k].prim += slots_[inst[k]].first;
+                else out[k] = Hitf{};
+            }
+    }
+
     Hitf hit(const Rayf& r) const {
         RTCIntersectContext ctx;
         rtcInitIntersectContext(&ctx);
@@ -210,6 +250,7 @@ private:
     }
 
     const Backend& backend_;
+    bool packets_;   // primary rays in packets of 16 (the run's --rays)
     RTCDevice device_ = nullptr;
     RTCScene top_ = nullptr;
     std::vector<Slot> slots_;
@@ -222,8 +263,7 @@ private:
 
 std::unique_ptr<Accel> make_embree_two_level_accel(const BuilderSpec& spec, const Backend& backend) {
 #if defined(DYNBVH_STUDY_EMBREE)
-    (void)spec;
-    return std::make_unique<EmbreeTwoLevelAccel>(backend);
+    return std::make_unique<EmbreeTwoLevelAccel>(spec, backend);
 #else
     (void)backend;
     throw std::runtime_error("builder " + spec.name() + ": this dynbvh-study was built without Embree 3 (install libembree-dev)");

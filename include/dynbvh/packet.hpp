@@ -709,8 +709,12 @@ struct PacketTraversal {
 
     /// Traces the rays of `group` (all of octant Oct) from the root; false when the stack of `cap`
     /// entries would overflow (a tree whose depth field is wrong: the caller redoes the rays alone).
-    template <int Oct>
-    bool run(std::uint32_t group, Entry* stack, std::size_t cap) {
+    /// `leaf(first, count, m)` tests leaf slot (first, count) against the rays of m and records their
+    /// hits with take() (the triangle leaves: test_leaf_packet; two_level.hpp's top level: instances).
+    /// Alone: rays fewer than min_rays in a subtree finish it alone (finish_lane); false keeps every
+    /// ray in the packet down to the leaves.
+    template <int Oct, bool Alone = true, class Leaf>
+    bool run(std::uint32_t group, Entry* stack, std::size_t cap, const Leaf& leaf) {
         alive = group;
         std::size_t sp = 0;
         I cur = 0, cur_count = 0;
@@ -721,8 +725,11 @@ struct PacketTraversal {
         alignas(64) float te[WZ][NZ];
         for (;;) {
             if constexpr (AnyHit) m &= alive;   // occluded rays are done
-            if (unsigned(std::popcount(m)) < min_rays) {   // few rays left here: each goes on alone
-                for (std::uint32_t c = m; c != 0; c &= c - 1) finish_lane<Oct>(std::countr_zero(c), cur, cur_count);
+            bool few = m == 0;
+            if constexpr (Alone) few = unsigned(std::popcount(m)) < min_rays;
+            if (few) {   // few rays left here: each goes on alone
+                if constexpr (Alone)
+                    for (std::uint32_t c = m; c != 0; c &= c - 1) finish_lane<Oct>(std::countr_zero(c), cur, cur_count);
             } else if (cur_count == 0) {
                 const int nh = test_node<Oct>(bvh.nodes[cur], m, slot, smask, snear, te);
                 if (nh != 0) {
@@ -748,7 +755,7 @@ struct PacketTraversal {
                     continue;
                 }
             } else {
-                test_leaf_packet(cur, cur_count, m);
+                leaf(cur, cur_count, m);
             }
             // Pop the next entry that still holds rays which may find a closer hit there.
             for (;;) {
@@ -851,12 +858,15 @@ struct PacketTraversal {
                 std::vector<IntervalEntry<I>> heap(heap_cap);
                 ok = run_interval<Oct>(group, heap.data(), heap.size());
             }
-        } else if (fits) {
-            Entry stack[fixed_cap];
-            ok = run<Oct>(group, stack, fixed_cap);
         } else {
-            std::vector<Entry> heap(heap_cap);
-            ok = run<Oct>(group, heap.data(), heap.size());
+            const auto leaves = [this](I first, I count, std::uint32_t m) { test_leaf_packet(first, count, m); };
+            if (fits) {
+                Entry stack[fixed_cap];
+                ok = run<Oct>(group, stack, fixed_cap, leaves);
+            } else {
+                std::vector<Entry> heap(heap_cap);
+                ok = run<Oct>(group, heap.data(), heap.size(), leaves);
+            }
         }
         if (!ok) [[unlikely]]   // the tree is deeper than its depth field: every ray of the group alone
             for (std::uint32_t c = group; c != 0; c &= c - 1) {

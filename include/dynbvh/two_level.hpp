@@ -34,7 +34,12 @@
 /// found so far as tmax, through the object's tree made 8-wide with SIMD triangle-block leaves for float
 /// (`object_traced_type`; wide_blocks.hpp: the same answers as the object's binary tree, bit for bit). A hit
 /// reports t (the same parameter in world and object space), u, v, the object's triangle (`prim`) and
-/// the instance (`instance`).
+/// the instance (`instance`). An exact tie between instances goes to the larger instance index (as brute
+/// force's order gives it), so the answer does not depend on the order instances are visited in.
+/// Packets (`intersect(RayPacket)`, `occluded(RayPacket)`; packet.hpp): the top level is traversed by
+/// packet.hpp's packet traversal with a leaf step of its own: at each instance, the lanes that reach
+/// its box go into object space together and through the object's tree as one object-space packet (an
+/// affine map keeps coherent rays coherent); every lane gets the single-ray answer, bit for bit.
 ///
 /// Exactness contract: `intersect` returns what `brute_force_intersect` returns, which tests every
 /// instance in order with the same object ray (object_ray) and the watertight triangle test against
@@ -75,6 +80,7 @@
 #include "dynamic.hpp"
 #include "mesh.hpp"
 #include "executor.hpp"
+#include "packet.hpp"
 #include "traverse.hpp"
 #include "traverse_wide.hpp"
 #include "wide.hpp"
@@ -94,6 +100,30 @@ struct Instance {
 template <class T>
 struct InstanceHit : Hit<T> {
     std::uint32_t instance = invalid_prim;   ///< index of the instance hit (into TwoLevel::instances())
+};
+
+/// The closest hits of a ray packet in a two-level scene: HitPacket's lanes (prim = the object's
+/// triangle) and the instance of each lane's hit (`invalid_prim` for a miss or an inactive lane).
+template <class T, int N>
+struct alignas(64) InstanceHitPacket : HitPacket<T, N> {
+    /// The hit instance per lane, or invalid_prim.
+    alignas(64) std::uint32_t instance[std::size_t(N)];
+    /// All misses.
+    InstanceHitPacket() noexcept {
+        for (int k = 0; k < N; ++k) instance[k] = invalid_prim;
+    }
+    /// Stores `h` in lane k.
+    void set(int k, const InstanceHit<T>& h) noexcept {
+        HitPacket<T, N>::set(k, h);
+        instance[k] = h.instance;
+    }
+    /// Lane k's hit.
+    InstanceHit<T> hit(int k) const noexcept {
+        InstanceHit<T> h;
+        static_cast<Hit<T>&>(h) = HitPacket<T, N>::hit(k);
+        h.instance = instance[k];
+        return h;
+    }
 };
 
 namespace detail {
@@ -244,6 +274,29 @@ public:
     template <class Policy = trace::robust>
     bool occluded(const Ray<scalar_type>& ray) const {
         return bool(trace<Policy, true>(ray, "occluded"));
+    }
+
+    /// Closest hits of the active lanes of `packet` (bit k of `active`; bits from N on are ignored): lane
+    /// k is, bit for bit, `intersect<Policy>(packet.ray(k))`; inactive lanes get the miss value. Float
+    /// scenes with box::robust trace the top level as a packet (packet.hpp's traversal) and, at each
+    /// instance, the lanes that reach it as one object-space packet through the object's tree; other
+    /// cases trace ray by ray. Throws std::logic_error when the scene changed since the last commit().
+    template <class Policy = trace::robust, int N>
+    InstanceHitPacket<scalar_type, N> intersect(const RayPacket<scalar_type, N>& packet, std::uint32_t active = all_lanes<N>,
+                                                const PacketConfig& cfg = {}) const {
+        InstanceHitPacket<scalar_type, N> out;
+        trace_packet<Policy, false>(packet, active & all_lanes<N>, cfg, out, "intersect");
+        return out;
+    }
+    /// Any-hit query of the active lanes of `packet`: bit k is set when lane k is active and
+    /// `occluded<Policy>(packet.ray(k))` is true. Throws std::logic_error when the scene changed since
+    /// the last commit().
+    template <class Policy = trace::robust, int N>
+    std::uint32_t occluded(const RayPacket<scalar_type, N>& packet, std::uint32_t active = all_lanes<N>,
+                           const PacketConfig& cfg = {}) const {
+        InstanceHitPacket<scalar_type, N> out;
+        trace_packet<Policy, true>(packet, active & all_lanes<N>, cfg, out, "occluded");
+        return out.hit_mask();
     }
 
     /// Reference closest hit: every instance in order, its object ray (object_ray), every triangle of
@@ -471,13 +524,20 @@ private:
             return true;
         } else {
             const Hit<scalar_type> h = obj.visit([&](const auto& tris) { return dynbvh::intersect<Policy>(obj.traced, tris, r); });
-            if (h) {
+            if (h && takes(h.t, tmax, k, best.instance)) {
                 static_cast<Hit<scalar_type>&>(best) = h;
                 best.instance = k;
                 tmax = h.t;
             }
             return false;
         }
+    }
+
+    /// Whether a hit at t (<= tmax, the closest so far) in instance k replaces the closest so far, in
+    /// instance `best` (invalid_prim: none): a closer one, or at the same t a larger instance index, as
+    /// brute force's order gives; so the answer does not depend on the order instances are visited in.
+    static DYNBVH_ALWAYS_INLINE bool takes(scalar_type t, scalar_type tmax, std::uint32_t k, std::uint32_t best) noexcept {
+        return t < tmax || best == invalid_prim || k > best;
     }
 
     /// The float top level (top8_, boxes grown by the reach widening, see commit()): 8-wide near-first
@@ -667,6 +727,112 @@ private:
             if (!found) return best;
         }
     }
+
+    /// The packet query (see intersect(packet)): out (all misses on entry) gets every active lane's answer.
+    template <class Policy, bool AnyHit, int N>
+    void trace_packet(const RayPacket<scalar_type, N>& packet, std::uint32_t active, const PacketConfig& cfg,
+                      InstanceHitPacket<scalar_type, N>& out, const char* fn) const {
+        if (dirty_)
+            throw std::logic_error(std::string("dynbvh::TwoLevel::") + fn +
+                                   ": the scene changed since the last commit(); call commit() first");
+        if (top_.empty()) return;
+        std::uint32_t alone = active;   // the lanes traced ray by ray
+#if defined(DYNBVH_SSE)
+        if constexpr (std::is_same_v<scalar_type, float> && std::is_same_v<typename Policy::box_test, box::robust>)
+            alone = trace_top_packet<Policy, AnyHit>(packet, active, cfg, out);
+#endif
+        (void)cfg;
+        for (std::uint32_t c = alone; c != 0; c &= c - 1) {
+            const int k = std::countr_zero(c);
+            out.set(k, trace<Policy, AnyHit>(packet.ray(k), fn));
+        }
+    }
+
+#if defined(DYNBVH_SSE)
+    /// The top level as a packet: packet.hpp's traversal of top8_ (by octant groups, ray-by-ray box tests
+    /// with box::robust's operations, as trace_top8) down to every leaf it reaches; at a leaf, the lanes
+    /// that reach its instance go into the object's space together (object_ray, lane by lane) and through
+    /// the object's traced tree as one packet with their closest t so far. Returns the lanes left to the
+    /// single-ray path: rays the packet set-up does not take (packet.hpp's classify), origins beyond the
+    /// float top level's reach bound, groups of fewer than max(cfg.min_rays, 2) rays, and every ray when
+    /// the top level is deeper than the packet's fixed stack.
+    template <class Policy, bool AnyHit, int N>
+    std::uint32_t trace_top_packet(const RayPacket<float, N>& packet, std::uint32_t active, const PacketConfig& cfg,
+                                   InstanceHitPacket<float, N>& out) const {
+        using TopNode = WideNode<float, typename NodeT::index_type, 8>;
+        using I = typename NodeT::index_type;
+        // The top level tests no triangle: moller_trumbore only makes the groups by octant alone.
+        using PT = detail::PacketTraversal<tri::moller_trumbore, AnyHit, TopNode, prim::indexed, N>;
+        static_assert(object_traced_type::block_lanes > 0, "float objects are traced through block trees");
+        if (top8_.depth >= PT::fixed_levels) return active;   // (never for our builders: 8-wide levels of instances)
+        PT st(top8_, {}, packet, cfg);
+        std::uint32_t packable = st.classify(active);
+        for (std::uint32_t c = packable; c != 0; c &= c - 1) {   // the float top level's origin bound
+            const int k = std::countr_zero(c);
+            const float o = std::max({std::abs(packet.org_x[k]), std::abs(packet.org_y[k]), std::abs(packet.org_z[k])});
+            if (!(double(o) <= origin_bound_)) packable &= ~(std::uint32_t(1) << k);
+        }
+        std::uint32_t alone = active & ~packable;
+        std::uint32_t inst[std::size_t(N)];
+        // A leaf slot: each instance against the lanes of m that reach it, as one object-space packet.
+        const auto leaf = [&](I first, I count, std::uint32_t m) {
+            for (std::size_t s = first; s < std::size_t(first) + count; ++s) {
+                if constexpr (AnyHit) {
+                    m &= st.alive;
+                    if (m == 0) return;
+                }
+                const auto k = static_cast<std::uint32_t>(top8_.prim_ids[s]);
+                const Affine<float>& inv = inverses_[k];
+                RayPacket<float, N> op;
+                for (std::uint32_t c = m; c != 0; c &= c - 1) {
+                    const int j = std::countr_zero(c);
+                    op.set(j, object_ray(inv, Ray<float>{{packet.org_x[j], packet.org_y[j], packet.org_z[j]},
+                                                         {packet.dir_x[j], packet.dir_y[j], packet.dir_z[j]},
+                                                         packet.tmin[j], st.tmax[j]}));
+                }
+                HitPacket<float, N> h;
+                detail::packet_query<Policy, AnyHit>(objects_[instances_[k].object].traced, std::span<const Triangle<float>>(), op, m,
+                                                     cfg, h);
+                for (std::uint32_t c = h.hit_mask() & m; c != 0; c &= c - 1) {
+                    const int j = std::countr_zero(c);
+                    if constexpr (!AnyHit)
+                        if (!takes(h.t[j], st.tmax[j], k, inst[j])) continue;
+                    st.take(j, h.t[j], h.u[j], h.v[j], h.prim[j]);
+                    inst[j] = k;
+                }
+            }
+        };
+        typename PT::Entry stack[PT::fixed_cap];   // holds top8_.depth < PT::fixed_levels (checked above)
+        for (std::uint32_t rest = packable; rest != 0;) {
+            const int f = std::countr_zero(rest);
+            const std::uint32_t g = st.same_kind(rest, f);
+            rest &= ~g;
+            if (unsigned(std::popcount(g)) < std::max(cfg.min_rays, 2u)) {
+                alone |= g;
+                continue;
+            }
+            st.begin_group(g);   // per lane: tmax = the ray's, no hit (st.best: the object's triangle)
+            for (std::uint32_t c = g; c != 0; c &= c - 1) inst[std::countr_zero(c)] = invalid_prim;
+            const bool ok = detail::dispatch_octant(int(st.sign[0] >> f & 1u) | int(st.sign[1] >> f & 1u) << 1 | int(st.sign[2] >> f & 1u) << 2,
+                                                    [&](auto o) { return st.template run<decltype(o)::value, false>(g, stack, PT::fixed_cap, leaf); });
+            if (!ok) [[unlikely]] {   // a top level deeper than its depth field: these rays alone
+                alone |= g;
+                continue;
+            }
+            for (std::uint32_t c = g; c != 0; c &= c - 1) {
+                const int j = std::countr_zero(c);
+                InstanceHit<float> r;
+                if (inst[j] != invalid_prim) {
+                    static_cast<Hit<float>&>(r) = st.hit[j];
+                    r.prim = AnyHit ? 0 : st.best[j];
+                    r.instance = inst[j];
+                }
+                out.set(j, r);
+            }
+        }
+        return alone;
+    }
+#endif
 
     config_type cfg_;
     Exec ex_;
