@@ -376,12 +376,7 @@ struct PacketTraversal {
             okz = o[kz];
         }
         const float* d[3] = {pk.dir_x, pk.dir_y, pk.dir_z};
-        alignas(64) float gm[NZ];   // all bits set in the group's lanes
-        const float on = std::bit_cast<float>(~std::uint32_t(0));
-        for (int k = 0; k < N; ++k) {   // (no branches: the group's lanes are any subset)
-            const bool in = (group >> k & 1u) != 0;
-            gm[k] = in ? on : 0.0f;
-            tmax[k] = in ? pk.tmax[k] : -inf;
+        for (int k = 0; k < N; ++k) {
             best[k] = invalid_prim;
             hit[k] = Hit<float>{};
         }
@@ -411,7 +406,8 @@ struct PacketTraversal {
         R hox = ninf, hoy = ninf, hoz = ninf, hix = ninf, hiy = ninf, hiz = ninf;
         for (int h = 0; h < NS; ++h) {
             const int o = h * V::n;
-            const R g = V::load(gm + o);
+            const R g = V::from_bits(group >> o);   // all bits set in the group's lanes
+            V::store(tmax + o, select(g, V::load(pk.tmax + o), ninf));
             const R X = V::load(ox + o), Y = V::load(oy + o), Z = V::load(oz + o);
             const R IX = V::load(ix + o), IY = V::load(iy + o), IZ = V::load(iz + o);
             lox = V::min(lox, select(g, X, pinf)); hox = V::max(hox, select(g, X, ninf));
@@ -779,9 +775,10 @@ struct PacketTraversal {
     /// The interval traversal of a coherent group: inner nodes are tested for the whole group at once
     /// (test_node_interval) and entered by every unfinished ray; leaf slots are tested ray by ray, and
     /// only the rays that hit a leaf's box test its triangles. Conservative at every step, so each ray
-    /// gets its single-ray answer (extra visits cannot change an order-independent answer).
-    template <int Oct>
-    bool run_interval(std::uint32_t group, IntervalEntry<I>* stack, std::size_t cap) {
+    /// gets its single-ray answer (extra visits cannot change an order-independent answer). `leaf` as
+    /// for run().
+    template <int Oct, class Leaf>
+    bool run_interval(std::uint32_t group, IntervalEntry<I>* stack, std::size_t cap, const Leaf& leaf) {
         using IE = IntervalEntry<I>;
         alive = group;
         std::size_t sp = 0;
@@ -823,7 +820,7 @@ struct PacketTraversal {
                     continue;
                 }
             } else {
-                test_leaf_packet(cur, cur_count, m);
+                leaf(cur, cur_count, m);
                 thi = tmax_bound();
             }
             // Pop the next entry some of whose rays may still find a closer hit there.
@@ -850,16 +847,16 @@ struct PacketTraversal {
         bool ok;
         const bool fits = bvh.depth < fixed_levels;
         const std::size_t heap_cap = std::size_t(W - 1) * (bvh.nodes.size() + 1) + 1;
+        const auto leaves = [this](I first, I count, std::uint32_t m) { test_leaf_packet(first, count, m); };
         if (coherent && interval) {
             if (fits) {
                 IntervalEntry<I> stack[fixed_cap];
-                ok = run_interval<Oct>(group, stack, fixed_cap);
+                ok = run_interval<Oct>(group, stack, fixed_cap, leaves);
             } else {
                 std::vector<IntervalEntry<I>> heap(heap_cap);
-                ok = run_interval<Oct>(group, heap.data(), heap.size());
+                ok = run_interval<Oct>(group, heap.data(), heap.size(), leaves);
             }
         } else {
-            const auto leaves = [this](I first, I count, std::uint32_t m) { test_leaf_packet(first, count, m); };
             if (fits) {
                 Entry stack[fixed_cap];
                 ok = run<Oct>(group, stack, fixed_cap, leaves);

@@ -749,8 +749,9 @@ private:
     }
 
 #if defined(DYNBVH_SSE)
-    /// The top level as a packet: packet.hpp's traversal of top8_ (by octant groups, ray-by-ray box tests
-    /// with box::robust's operations, as trace_top8) down to every leaf it reaches; at a leaf, the lanes
+    /// The top level as a packet: packet.hpp's traversal of top8_ (by octant groups; a coherent group tests
+    /// inner nodes by one interval test, leaf boxes ray by ray with box::robust's operations, as
+    /// trace_top8; other groups every box ray by ray) down to every leaf it reaches; at a leaf, the lanes
     /// that reach its instance go into the object's space together (object_ray, lane by lane) and through
     /// the object's traced tree as one packet with their closest t so far. Returns the lanes left to the
     /// single-ray path: rays the packet set-up does not take (packet.hpp's classify), origins beyond the
@@ -802,7 +803,12 @@ private:
                 }
             }
         };
-        typename PT::Entry stack[PT::fixed_cap];   // holds top8_.depth < PT::fixed_levels (checked above)
+        // (the fixed stacks hold top8_.depth < PT::fixed_levels, checked above; one of them is used)
+        union Stacks {
+            Stacks() noexcept {}
+            typename PT::Entry rays[PT::fixed_cap];                  // run: per-ray entry distances
+            detail::IntervalEntry<typename PT::I> group[PT::fixed_cap];   // run_interval: one bound per entry
+        } stack;
         for (std::uint32_t rest = packable; rest != 0;) {
             const int f = std::countr_zero(rest);
             const std::uint32_t g = st.same_kind(rest, f);
@@ -813,8 +819,14 @@ private:
             }
             st.begin_group(g);   // per lane: tmax = the ray's, no hit (st.best: the object's triangle)
             for (std::uint32_t c = g; c != 0; c &= c - 1) inst[std::countr_zero(c)] = invalid_prim;
+            // A coherent group: inner nodes by one interval test for the whole group (packet.hpp); else ray by ray.
             const bool ok = detail::dispatch_octant(int(st.sign[0] >> f & 1u) | int(st.sign[1] >> f & 1u) << 1 | int(st.sign[2] >> f & 1u) << 2,
-                                                    [&](auto o) { return st.template run<decltype(o)::value, false>(g, stack, PT::fixed_cap, leaf); });
+                                                    [&](auto o) {
+                                                        constexpr int Oct = decltype(o)::value;
+                                                        if (st.coherent && cfg.interval)
+                                                            return st.template run_interval<Oct>(g, stack.group, PT::fixed_cap, leaf);
+                                                        return st.template run<Oct, false>(g, stack.rays, PT::fixed_cap, leaf);
+                                                    });
             if (!ok) [[unlikely]] {   // a top level deeper than its depth field: these rays alone
                 alone |= g;
                 continue;

@@ -96,6 +96,12 @@ struct Lanes4 {
     static DYNBVH_ALWAYS_INLINE reg ne(reg a, reg b) noexcept { return _mm_cmpneq_ps(a, b); }
     /// Bit k set for each lane k of mask m.
     static DYNBVH_ALWAYS_INLINE unsigned bits(reg m) noexcept { return unsigned(_mm_movemask_ps(m)); }
+    /// The inverse of bits: lane k all ones where bit k of b is set, else 0 (in registers: a mask
+    /// stored lane by lane and loaded as a vector stalls on store forwarding).
+    static DYNBVH_ALWAYS_INLINE reg from_bits(unsigned b) noexcept {
+        const __m128i sel = _mm_setr_epi32(1, 2, 4, 8);
+        return _mm_castsi128_ps(_mm_cmpeq_epi32(_mm_and_si128(_mm_set1_epi32(int(b)), sel), sel));
+    }
 };
 
 #if defined(DYNBVH_AVX)
@@ -140,6 +146,13 @@ struct Lanes8 {
     static DYNBVH_ALWAYS_INLINE reg le(reg a, reg b) noexcept { return _mm256_cmp_ps(a, b, _CMP_LE_OQ); }
     static DYNBVH_ALWAYS_INLINE reg ne(reg a, reg b) noexcept { return _mm256_cmp_ps(a, b, _CMP_NEQ_UQ); }
     static DYNBVH_ALWAYS_INLINE unsigned bits(reg m) noexcept { return unsigned(_mm256_movemask_ps(m)); }
+    /// The inverse of bits (see Lanes4::from_bits); AVX only: the lane bits become small integers,
+    /// converted to float and compared with 0.
+    static DYNBVH_ALWAYS_INLINE reg from_bits(unsigned b) noexcept {
+        const __m256 sel = _mm256_castsi256_ps(_mm256_setr_epi32(1, 2, 4, 8, 16, 32, 64, 128));
+        const __m256 in = _mm256_and_ps(_mm256_castsi256_ps(_mm256_set1_epi32(int(b & 0xffu))), sel);
+        return _mm256_cmp_ps(_mm256_cvtepi32_ps(_mm256_castps_si256(in)), _mm256_setzero_ps(), _CMP_NEQ_OQ);
+    }
 };
 /// The widest lanes that divide W: one AVX step per 8-wide node.
 template <int W>
