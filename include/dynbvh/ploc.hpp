@@ -41,6 +41,7 @@
 #include "detail/references.hpp"
 #include "detail/triangle_source.hpp"
 #include "detail/scratch.hpp"
+#include "wide_blocks.hpp"
 #include "detail/simd.hpp"
 
 namespace dynbvh::ploc {
@@ -466,6 +467,25 @@ template <int W = 8, class NodeT = void, class Prim = prim::indexed, class Exec 
 wide_bvh_of<Bvh<dynbvh::detail::node_for_t<NodeT, T>, Prim>, W> build_wide(const MeshView<T, Index>& mesh, const Config& cfg = {},
                                                                          const Exec& ex = {}) {
     return dynbvh::detail::build_over<W, dynbvh::detail::node_for_t<NodeT, T>, Prim>(mesh, cfg, detail::Topology{}, ex);
+}
+
+/// The traced layout in one step: the W-wide tree `build_wide<W>(tris, cfg, ex)` gives with its leaves
+/// packed into SIMD blocks of L triangles (wide_blocks.hpp), the tree
+/// `make_wide_blocks<L>(build_wide<W>(tris, cfg, ex), tris, ex)` gives, bit for bit, without the index
+/// tree (the leaves are packed as the wide nodes are linked together; detail/emit_wide.hpp). Pass
+/// `.leaves = dynbvh::block_leaves` for leaves sized for blocks of 8:
+/// `auto t = dynbvh::ploc::build_blocks(tris, {.radius = 5, .leaves = dynbvh::block_leaves}, ex);`
+template <int W = 8, int L = W, class Exec = exec::default_executor>
+WideBvh<WideNode<float, std::uint32_t, W>, prim::blocks<L>> build_blocks(std::span<const Triangle<float>> tris, const Config& cfg = {},
+                                                                         const Exec& ex = {}) {
+    return dynbvh::detail::build_over<W, Node<float>, prim::blocks<L>>(tris, cfg, detail::Topology{}, ex);
+}
+
+/// build_blocks over an indexed float mesh read in place (mesh.hpp): the span's tree, bit for bit.
+template <int W = 8, int L = W, class Exec = exec::default_executor, class Index>
+WideBvh<WideNode<float, std::uint32_t, W>, prim::blocks<L>> build_blocks(const MeshView<float, Index>& mesh, const Config& cfg = {},
+                                                                         const Exec& ex = {}) {
+    return dynbvh::detail::build_over<W, Node<float>, prim::blocks<L>>(mesh, cfg, detail::Topology{}, ex);
 }
 
 /// The same for a std::vector of triangles of any scalar, the node type following the triangles:
