@@ -41,6 +41,7 @@
 #include "detail/references.hpp"
 #include "detail/triangle_source.hpp"
 #include "detail/scratch.hpp"
+#include "morton_wide.hpp"
 #include "wide_blocks.hpp"
 #include "detail/simd.hpp"
 
@@ -93,6 +94,8 @@ inline std::size_t partner_of(std::size_t m, std::uint64_t key) noexcept {
 inline constexpr std::uint32_t max_radius = 1u << 16;
 /// Below this many clusters an iteration runs on the calling thread (threading costs more than it saves).
 inline constexpr std::size_t serial_cluster_count = 4096;
+/// Clusters per chunk of a parallel iteration, at least (at most 4 chunks per worker).
+inline constexpr std::size_t chunk_clusters = 4096;
 /// An iteration merging fewer than clusters / this pairs falls back to pairing Morton neighbours
 /// (real scenes merge 10-40% of the clusters per iteration).
 inline constexpr std::size_t min_progress_divisor = 64;
@@ -186,8 +189,13 @@ public:
     template <class Exec>
     Clustering(const References<T>& refs, std::uint32_t radius, const Exec& ex, dynbvh::detail::RawNodeInfo<T>* info = nullptr,
                const LeafConfig& leaves = {})
-        : info_(info), rule_(leaves), radius_(std::clamp<std::uint32_t>(radius, 1, max_radius)), n_(refs.size()), count_(n_),
-          partner_(n_) {
+        : Clustering(refs.size(), radius, info, leaves) {
+        ex.for_each(0, n_, [&](std::size_t i) { set_box(i, refs.box[i]); });
+    }
+
+    /// The state for `n` >= 2 references whose boxes the caller sets (set_box, every i < n) before run.
+    Clustering(std::size_t n, std::uint32_t radius, dynbvh::detail::RawNodeInfo<T>* info, const LeafConfig& leaves)
+        : info_(info), rule_(leaves), radius_(std::clamp<std::uint32_t>(radius, 1, max_radius)), n_(n), count_(n_), partner_(n_) {
         for (auto& b : box_) b.resize(6 * n_);
         for (auto& v : ids_) v.resize(n_);
         for (auto& v : first_leaf_) v.resize(n_);
@@ -195,13 +203,14 @@ public:
             for (auto& v : facts_) v.resize(n_);
         tree_.left.resize(n_ - 1);
         tree_.right.resize(n_ - 1);
+    }
+
+    /// The box of reference (first cluster) i.
+    void set_box(std::size_t i, const AABB<T>& r) noexcept {
         T* const b = box_[0].data();
         const std::size_t n = n_;
-        ex.for_each(0, n, [&](std::size_t i) {
-            const AABB<T>& r = refs.box[i];
-            b[i] = r.min.x; b[n + i] = r.min.y; b[2 * n + i] = r.min.z;
-            b[3 * n + i] = r.max.x; b[4 * n + i] = r.max.y; b[5 * n + i] = r.max.z;
-        });
+        b[i] = r.min.x; b[n + i] = r.min.y; b[2 * n + i] = r.min.z;
+        b[3 * n + i] = r.max.x; b[4 * n + i] = r.max.y; b[5 * n + i] = r.max.z;
     }
 
     /// Runs iterations until one cluster is left; returns the tree (root = the last cluster).
@@ -231,9 +240,15 @@ private:
     template <class Exec>
     void iterate(const Exec& ex) {
         const std::size_t c = count_, r = radius_;
-        const std::size_t chunks = std::clamp<std::size_t>(c / 4096, 1, 4 * ex.concurrency());
+        const std::size_t chunks = std::clamp<std::size_t>(c / chunk_clusters, 1, 4 * ex.concurrency());
         const std::size_t size = (c + chunks - 1) / chunks;
-        if (local_.size() < chunks) local_.resize(chunks);
+        // One scratch array for every chunk's neighbours (with halos): taken from the scratch cache
+        // once, not a page-faulted allocation per chunk and build.
+        const std::size_t span = size + 2 * r;
+        if (nn_.size() < chunks * span) nn_.resize(chunks * span);
+        if constexpr (!simd_search) {
+            if (keys_.size() < chunks * span) keys_.resize(chunks * span);
+        }
         survivors_.assign(chunks + 1, 0);
         const T* const cur = box_[iteration_ & 1].data();
         const T* const box[6] = {cur, cur + n_, cur + 2 * n_, cur + 3 * n_, cur + 4 * n_, cur + 5 * n_};
@@ -242,10 +257,8 @@ private:
             const std::size_t lo = std::min(c, k * size), hi = std::min(c, lo + size);
             if (lo == hi) return;
             const std::size_t a = lo >= r ? lo - r : 0, b = std::min(c, hi + r);
-            Local& l = local_[k];
-            l.nn.resize(b - a);
-            nearest(box, c, r, a, b, l);
-            const std::uint32_t* nn = l.nn.data();
+            std::uint32_t* const nn = nn_.data() + k * span;
+            nearest(box, c, r, a, b, nn, simd_search ? nullptr : keys_.data() + k * span);
             std::size_t kept = 0;
             for (std::size_t i = lo; i < hi; ++i) {
                 const std::uint32_t p = nn[i - a];
@@ -271,21 +284,23 @@ private:
         count_ = adjacent ? (c + 1) / 2 : kept;
     }
 
-    /// Per-chunk scratch of pass A (kept between iterations).
-    struct Local {
-        scratch_vector<std::uint32_t> nn;
-        scratch_vector<std::uint64_t> keys;   // the plain search's best keys
-    };
-
-    void nearest(const T* const* box, std::size_t c, std::size_t r, std::size_t a, std::size_t b, Local& l) {
 #if defined(__AVX512F__) && !defined(DYNBVH_NO_SIMD)
-        if constexpr (std::is_same_v<T, float>) {
-            nearest_simd(box, c, r, a, b, l.nn.data());
+    static constexpr bool simd_search = std::is_same_v<T, float>;
+#else
+    static constexpr bool simd_search = false;
+#endif
+
+    /// Nearest neighbours of positions [a, b) into nn[0 .. b - a) (`keys`: the plain search's scratch).
+    static void nearest(const T* const* box, std::size_t c, std::size_t r, std::size_t a, std::size_t b, std::uint32_t* nn,
+                        std::uint64_t* keys) {
+#if defined(__AVX512F__) && !defined(DYNBVH_NO_SIMD)
+        if constexpr (simd_search) {
+            (void)keys;
+            nearest_simd(box, c, r, a, b, nn);
             return;
         }
 #endif
-        l.keys.resize(b - a);
-        nearest_scalar(box, c, r, a, b, l.nn.data(), l.keys.data());
+        if constexpr (!simd_search) nearest_scalar(box, c, r, a, b, nn, keys);
     }
 
     /// Pass B over clusters [lo, hi): survivor i goes to position `pos` onwards (in adjacent mode, i / 2);
@@ -306,12 +321,18 @@ private:
         std::uint32_t* const next_first = first_leaf_[out].data();
         const Facts* const facts = facts_[in].data();
         Facts* const next_facts = facts_[out].data();
+        // (members in locals: the stores below could alias them, and reloading them costs in this loop)
+        std::uint32_t* const left = tree_.left.data();
+        std::uint32_t* const right = tree_.right.data();
+        dynbvh::detail::RawNodeInfo<T>* const info = info_;
+        const std::uint32_t* const partners = partner_.data();
+        const dynbvh::detail::CollapseRule<T> rule = rule_;
         auto box_at = [&](std::size_t i) { return AABB<T>{{b[i], b[n + i], b[2 * n + i]}, {b[3 * n + i], b[4 * n + i], b[5 * n + i]}}; };
         auto id_of = [&](std::size_t i) { return First ? BinaryTree::leaf(std::uint32_t(i)) : ids[i]; };
         auto first_of = [&](std::size_t i) { return First ? std::uint32_t(i) : first[i]; };
         auto node_facts = [&](std::size_t i, const AABB<T>& bx, dynbvh::detail::RawNodeInfo<T>& f) {
             if (First) {
-                rule_.leaf(bx, f);
+                rule.leaf(bx, f);
             } else {
                 const Facts& s = facts[i];
                 f.min = bx.min;
@@ -324,7 +345,7 @@ private:
             }
         };
         if (adjacent) pos = (lo + 1) / 2;
-        auto partner = [&](std::size_t i) { return adjacent ? ((i ^ 1) < c ? (i ^ 1) : i) : std::size_t(partner_[i]); };
+        auto partner = [&](std::size_t i) { return adjacent ? ((i ^ 1) < c ? (i ^ 1) : i) : std::size_t(partners[i]); };
         constexpr std::size_t ahead = 16;   // clusters: the new nodes' far-away slots are fetched this far ahead
         for (std::size_t i = lo; i < hi; ++i) {
 #if defined(__GNUC__)
@@ -332,11 +353,11 @@ private:
                 const std::size_t f = i + ahead, g = partner(f);
                 if (g > f) {
                     const std::uint32_t node = first_of(g) - 1;
-                    __builtin_prefetch(&tree_.left[node], 1);
-                    __builtin_prefetch(&tree_.right[node], 1);
-                    if (info_) {   // (a node's facts may straddle two lines)
-                        __builtin_prefetch(&info_[node], 1);
-                        __builtin_prefetch(reinterpret_cast<const char*>(&info_[node + 1]) - 1, 1);
+                    __builtin_prefetch(left + node, 1);
+                    __builtin_prefetch(right + node, 1);
+                    if (info) {   // (a node's facts may straddle two lines)
+                        __builtin_prefetch(info + node, 1);
+                        __builtin_prefetch(reinterpret_cast<const char*>(info + node + 1) - 1, 1);
                     }
                 }
             }
@@ -348,24 +369,24 @@ private:
             if (j != i) {
                 const AABB<T> other = box_at(j);
                 id = first_of(j) - 1;
-                tree_.left[id] = id_of(i);
-                tree_.right[id] = id_of(j);
-                if (info_) {
+                left[id] = id_of(i);
+                right[id] = id_of(j);
+                if (info) {
                     dynbvh::detail::RawNodeInfo<T> l, r;
                     node_facts(i, box, l);
                     node_facts(j, other, r);
                     dynbvh::detail::RawNodeInfo<T> f;   // (made here, stored once: info_[id] is far away)
-                    rule_.parent(l, r, f);
-                    info_[id] = f;
+                    rule.parent(l, r, f);
+                    info[id] = f;
                     box = f.box();
                     next_facts[pos] = {f.cost, f.refs, f.size, f.height | (f.collapsed ? 0x80000000u : 0u)};
                 } else {
                     box = merge(box, other);
                 }
-            } else if (info_) {
+            } else if (info) {
                 if (First) {
                     dynbvh::detail::RawNodeInfo<T> f;
-                    rule_.leaf(box, f);
+                    rule.leaf(box, f);
                     next_facts[pos] = {f.cost, f.refs, f.size, f.height | 0x80000000u};
                 } else {
                     next_facts[pos] = facts[i];
@@ -391,7 +412,8 @@ private:
     scratch_vector<Facts> facts_[2];               // cluster -> facts of its subtree (with info_ only)
     scratch_vector<std::uint32_t> partner_;        // cluster -> its mutual partner, or itself (pass A)
     std::vector<std::size_t> survivors_;           // per chunk: survivors, then their first position
-    std::vector<Local> local_;
+    scratch_vector<std::uint32_t> nn_;             // per chunk: nearest neighbours of its clusters and halos
+    scratch_vector<std::uint64_t> keys_;           // per chunk: the plain search's best keys
     BinaryTree tree_;
 };
 } // namespace detail
@@ -427,12 +449,65 @@ BinaryTree build_tree_with_info(References<T>& refs, const Config& cfg, scratch_
     return Clustering<T>(refs, cfg.radius, ex, info.data(), cfg.leaves).run(ex);
 }
 
-/// The topology step for dynbvh::detail::build_over (detail/emit_wide.hpp), facts included.
+/// References and tree straight from the triangles (any triangle source), with the facts of every inner
+/// node: the refs make_references + morton::sort_references give and the tree build_tree_with_info
+/// makes over them, bit for bit, in fewer passes. The triangles are sorted by their codes alone
+/// (morton_wide::detail::sort_triangles: no box array yet), then one pass reads each triangle in
+/// Morton order and writes its box twice, into the sorted references (for the emission) and into
+/// the clustering's first boxes (replacing make_references' box array, the sort's gather of it and
+/// the clustering's copy).
+template <class Source, class Exec>
+std::pair<References<dynbvh::detail::source_scalar_t<Source>>, BinaryTree>
+build_from_triangles(Source tris, const Config& cfg, scratch_vector<dynbvh::detail::RawNodeInfo<dynbvh::detail::source_scalar_t<Source>>>& info,
+                     const Exec& ex) {
+    using T = dynbvh::detail::source_scalar_t<Source>;
+    morton::check_bits(cfg.morton_bits, "dynbvh::ploc");
+    BinaryTree::check_size(tris.size(), "dynbvh::ploc");
+    References<T> refs;
+    refs.primitive_count = tris.size();
+    BinaryTree tree;
+    auto run = [&](auto key) {
+        using Key = decltype(key);
+        auto sorted = morton_wide::detail::sort_triangles<Key>(tris, ex);
+        refs.excluded = sorted.excluded;
+        refs.prim = std::move(sorted.prim);
+        const std::size_t n = refs.prim.size();
+        refs.box.resize(n);
+        tree = BinaryTree::start(n, "dynbvh::ploc");
+        if (n < 2) {
+            if (n == 1) refs.box[0] = morton_wide::detail::triangle_box<T>(tris[refs.prim[0]]);
+            return;
+        }
+        info.resize(n - 1);
+        Clustering<T> clusters(n, cfg.radius, info.data(), cfg.leaves);
+        const std::uint32_t* prim = refs.prim.data();
+        ex.for_blocks(0, n, [&](std::size_t lo, std::size_t hi) {
+            constexpr std::size_t ahead = 16;   // triangles: scattered in memory, read in Morton order
+            for (std::size_t i = lo; i < hi; ++i) {
+#if defined(__GNUC__)
+                if constexpr (std::is_lvalue_reference_v<decltype(tris[0])>)
+                    if (i + ahead < hi) __builtin_prefetch(&tris[prim[i + ahead]]);
+#endif
+                const AABB<T> b = morton_wide::detail::triangle_box<T>(tris[prim[i]]);
+                refs.box[i] = b;
+                clusters.set_box(i, b);
+            }
+        }, 4096);
+        tree = clusters.run(ex);
+    };
+    if (cfg.morton_bits == 63) run(std::uint64_t{});
+    else run(std::uint32_t{});
+    return {std::move(refs), std::move(tree)};
+}
+
+/// The whole-build step for dynbvh::detail::build_over (detail/emit_wide.hpp): references, tree and
+/// facts from the triangles in one go (build_from_triangles).
 struct Topology {
-    static constexpr bool makes_info = true;
-    template <class T, class Exec>
-    BinaryTree operator()(References<T>& refs, const Config& cfg, scratch_vector<dynbvh::detail::RawNodeInfo<T>>& info, const Exec& ex) const {
-        return build_tree_with_info(refs, cfg, info, ex);
+    static constexpr bool from_triangles = true;
+    template <class Source, class Exec>
+    auto operator()(Source tris, const Config& cfg, scratch_vector<dynbvh::detail::RawNodeInfo<dynbvh::detail::source_scalar_t<Source>>>& info,
+                    const Exec& ex) const {
+        return build_from_triangles(tris, cfg, info, ex);
     }
 };
 

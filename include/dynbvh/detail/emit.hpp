@@ -27,6 +27,7 @@
 #include "../executor.hpp"
 #include "references.hpp"
 #include "scratch.hpp"
+#include "simd.hpp"
 
 namespace dynbvh {
 
@@ -83,7 +84,7 @@ struct CollapseRule {
         : ct(float(cfg.cost.ct)), ci(float(cfg.cost.ci)), max_leaf(std::max<std::uint32_t>(1, cfg.max_leaf_size)) {}
 
     /// Facts of a single reference with box `b`.
-    void leaf(const AABB<T>& b, RawNodeInfo<T>& f) const noexcept {
+    DYNBVH_ALWAYS_INLINE void leaf(const AABB<T>& b, RawNodeInfo<T>& f) const noexcept {
         f.min = b.min;
         f.max = b.max;
         f.cost = ci * float(b.half_area());
@@ -94,7 +95,7 @@ struct CollapseRule {
     }
     /// Facts of the inner node over children `l` and `r`: collapsed to a leaf when that is cheaper
     /// (leaf cost Ci*A*N against Ct*A + children) and N <= max_leaf.
-    void parent(const RawNodeInfo<T>& l, const RawNodeInfo<T>& r, RawNodeInfo<T>& f) const noexcept {
+    DYNBVH_ALWAYS_INLINE void parent(const RawNodeInfo<T>& l, const RawNodeInfo<T>& r, RawNodeInfo<T>& f) const noexcept {
         const AABB<T> box = merge(l.box(), r.box());
         f.min = box.min;
         f.max = box.max;

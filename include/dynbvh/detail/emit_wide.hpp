@@ -355,19 +355,19 @@ namespace detail {
 /// The whole build of a builder whose topology step sees references alone (PLOC, binned SAH): the
 /// references of `tris` (any triangle source: a span or a MeshView), `topology(refs, cfg, ex)`, then
 /// emission with cfg.leaves, binary when W == 0, else W-wide. One code path for every input. A
-/// topology with `makes_info` (PLOC) is called as `topology(refs, cfg, info, ex)` and fills the facts
-/// of its inner nodes itself (emission then skips compute_node_info).
+/// topology with `from_triangles` (PLOC) is called as `topology(tris, cfg, info, ex)`: it makes the
+/// references itself and fills the facts of its inner nodes (emission then skips compute_node_info).
 template <int W, class NodeT, class Prim, class Source, class Config, class Topology, class Exec>
 auto build_over(Source tris, const Config& cfg, Topology topology, const Exec& ex) {
-    auto refs = make_references(tris, ex);
-    if constexpr (requires { Topology::makes_info; }) {   // the facts come with the tree (PLOC)
+    if constexpr (requires { Topology::from_triangles; }) {   // references, tree and facts in one step (PLOC)
         using T = source_scalar_t<Source>;
         scratch_vector<RawNodeInfo<T>> info;
-        const BinaryTree tree = topology(refs, cfg, info, ex);
+        const auto [refs, tree] = topology(tris, cfg, info, ex);
         const std::span<const RawNodeInfo<T>> facts(info);
         if constexpr (W == 0) return emit_from_info<NodeT, Prim>(tree, refs, tris, facts, ex);
         else return emit_wide_from_info<W, NodeT, Prim>(tree, refs, tris, facts, ex);
     } else {
+        auto refs = make_references(tris, ex);
         const BinaryTree tree = topology(refs, cfg, ex);
         if constexpr (W == 0) return emit_bvh<NodeT, Prim>(tree, refs, tris, cfg.leaves, ex);
         else return emit_wide_bvh<W, NodeT, Prim>(tree, refs, tris, cfg.leaves, ex);
