@@ -10,10 +10,20 @@
 ///  3. mutual nearest neighbours merge into a new inner node (the lower position keeps it);
 ///  4. a prefix sum compacts the surviving clusters, keeping their Morton order;
 ///  5. repeat until one cluster, the root, is left.
-/// Speed, in the spirit of PLOC++ (Benthin et al. 2022): each pair's distance is computed once per
-/// iteration and offered to both clusters as one packed integer key (a branch-free min); inner node ids
-/// follow from the clusters' first leaves, so no counter is needed and the tree is laid out along the
-/// curve; buffers are allocated once and swapped; iterations over few clusters run on the calling thread.
+/// Speed, in the spirit of PLOC++ (Benthin et al. 2022): an iteration is two parallel passes over fixed
+/// chunks of the clusters: (A) nearest neighbours of the chunk and of `radius` clusters on either side
+/// (so mutuality is decided locally), mutual partners, survivors counted; (B) after a scan over the
+/// chunks' counts, merged nodes and survivors written in order. Boxes are kept as structure of arrays:
+/// with AVX-512 the neighbour search takes 16 clusters per SIMD step (nearest_simd, the order of
+/// candidate_key exactly); without it, each pair's distance is computed once and offered to both ends
+/// as one packed integer key (nearest_scalar, a branch-free min). Inner node ids follow from the
+/// clusters' first leaves, so no counter is needed and the tree is laid out along the curve; buffers are
+/// allocated once and swapped; iterations over few clusters run on the calling thread. The builds
+/// (build, build_wide, build_blocks) sort the triangles by code alone and write each box once into the
+/// references and the clusters (build_from_triangles), and make each node's facts for the emission
+/// (box, SAH leaf collapse; detail/emit.hpp) as they make the node, its children's facts travelling
+/// with the clusters: no bottom-up pass over the finished tree. build_blocks packs the traced layout's
+/// triangle blocks during the wide emission (detail/emit_wide.hpp).
 ///
 /// Termination on any input: the distance is made a strict total order on pairs, so the best pair
 /// inside any window is mutual and every iteration merges at least one pair. A guard makes progress

@@ -64,13 +64,20 @@ namespace detail {
 /// nodes' children as it builds them, such as LBVH).
 template <class T>
 struct RawNodeInfo {
-    Vec3<T> min, max;         ///< box (kept as two corners: no initialisation, written once)
+    /// A box corner with no default member initialisers: Vec3's would zero every entry of a freshly
+    /// sized array of facts (tens of MB per build on large scenes) that the builders overwrite anyway.
+    struct Corner {
+        T x, y, z;
+        Corner& operator=(const Vec3<T>& v) noexcept { x = v.x; y = v.y; z = v.z; return *this; }
+        operator Vec3<T>() const noexcept { return {x, y, z}; }
+    };
+    Corner min, max;          ///< box (kept as two corners: no initialisation, written once)
     float cost;               ///< SAH cost of the subtree as it will be emitted
     std::uint32_t refs;       ///< references below
     std::uint32_t size;       ///< emitted nodes in the subtree (1 when collapsed to a leaf)
     std::uint32_t height;     ///< emitted height (0 when collapsed)
     bool collapsed;
-    AABB<T> box() const noexcept { return {min, max}; }
+    AABB<T> box() const noexcept { return {Vec3<T>(min), Vec3<T>(max)}; }
 };
 
 /// The SAH leaf collapse rule of LeafConfig: a parent's facts from its children's facts.
