@@ -20,6 +20,7 @@
 
 using namespace dynbvh;
 using dynbvh::test::same_bits;
+using dynbvh::test::block_difference;
 
 namespace {
 
@@ -86,20 +87,6 @@ bool same_tree(const WA& a, const WB& b) {
     return a.nodes.size() == b.nodes.size() && a.prim_ids.size() == b.prim_ids.size() && a.depth == b.depth &&
            (a.nodes.empty() || std::memcmp(a.nodes.data(), b.nodes.data(), a.nodes.size() * sizeof(a.nodes[0])) == 0) &&
            std::equal(a.prim_ids.begin(), a.prim_ids.end(), b.prim_ids.begin());
-}
-
-/// Empty when two block trees are the same to the bit (nodes, blocks lane by lane, counts), else what differs.
-template <class WA, class WB>
-std::string block_difference(const WA& a, const WB& b) {
-    if (a.nodes.size() != b.nodes.size() || a.blocks.size() != b.blocks.size()) return "sizes differ";
-    if (a.depth != b.depth || a.primitive_count != b.primitive_count || a.excluded != b.excluded) return "depth or counts differ";
-    if (!a.prim_ids.empty() || !b.prim_ids.empty() || !a.leaf_triangles.empty() || !b.leaf_triangles.empty()) return "a block tree with references";
-    if (!a.nodes.empty() && std::memcmp(a.nodes.data(), b.nodes.data(), a.nodes.size() * sizeof(a.nodes[0])) != 0) return "nodes differ";
-    for (std::size_t i = 0; i < a.blocks.size(); ++i)   // field by field: a block's tail padding is not written
-        if (std::memcmp(a.blocks[i].v, b.blocks[i].v, sizeof a.blocks[i].v) != 0 ||
-            std::memcmp(a.blocks[i].prim, b.blocks[i].prim, sizeof a.blocks[i].prim) != 0 || a.blocks[i].count != b.blocks[i].count)
-            return "block " + std::to_string(i) + " differs";
-    return {};
 }
 
 std::vector<std::pair<std::string, std::vector<Trianglef>>> scenes() {

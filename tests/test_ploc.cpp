@@ -7,6 +7,7 @@
 #include <dynbvh/ploc.hpp>
 #include <dynbvh/sah.hpp>
 #include <dynbvh/validate.hpp>
+#include <dynbvh/wide_blocks.hpp>
 
 #include <algorithm>
 #include <cstdint>
@@ -15,6 +16,7 @@
 #include <span>
 #include <string>
 #include <tuple>
+#include <utility>
 #include <vector>
 
 #include "support.hpp"
@@ -367,4 +369,53 @@ TEST_CASE("ploc: lower SAH than LBVH on the Stanford bunny, and a larger radius 
     MESSAGE("bunny SAH (Ct 3, Ci 2): lbvh " << lbvh_sah << ", ploc r=5 " << ploc5 << ", ploc r=16 " << ploc16);
     CHECK(ploc5 < lbvh_sah);
     CHECK(ploc16 <= ploc5 * 1.01);
+}
+
+/// build, build_wide and build_blocks (references straight from the triangles, node facts made with the
+/// nodes, blocks packed while the wide arrays are linked) against the plain path: make_references,
+/// build_tree, compute_node_info + emission, make_wide_blocks; bit for bit.
+TEST_CASE("ploc: build / build_wide / build_blocks are the plain path's trees, bit for bit, on every executor (4/8 wide, 4/8 lanes)") {
+    auto soup = random_soup(40000, 17, 0.01f);   // large enough for more than the 256 subtrees of the wide top
+    for (std::size_t i = 11; i < soup.size(); i += 997) soup[i].p0.y = std::numeric_limits<float>::quiet_NaN();
+    const std::vector<std::pair<const char*, std::vector<Trianglef>>> scenes = {
+        {"soup with NaN", soup},   {"flat", flat_scene(3000, 18)}, {"identical", identical(2000)},
+        {"one", random_soup(1, 19)}, {"two", random_soup(2, 20)},  {"nine", random_soup(9, 21)},
+        {"empty", {}},
+    };
+    for (const auto& [name, tris] : scenes) {
+        CAPTURE(name);
+        const std::span<const Trianglef> ts(tris);
+        for (const LeafConfig leaves : {block_leaves, LeafConfig{}}) {
+            CAPTURE(leaves.max_leaf_size);
+            const ploc::Config cfg{.radius = 5, .leaves = leaves};
+            const exec::serial s;
+            // The plain path: make_references, build_tree (facts left to compute_node_info), then emission.
+            auto refs = make_references(ts, s);
+            const BinaryTree tree = ploc::build_tree(refs, cfg, s);
+            const auto bin = emit_bvh<Node<>, prim::indexed>(tree, refs, ts, leaves, s);
+            const auto w8 = emit_wide_bvh<8, Node<>, prim::indexed>(tree, refs, ts, leaves, s);
+            const auto w4 = emit_wide_bvh<4, Node<>, prim::indexed>(tree, refs, ts, leaves, s);
+            const auto b88 = make_wide_blocks(w8, ts, s);
+            const auto b84 = make_wide_blocks<4>(w8, ts, s);
+            const auto b44 = make_wide_blocks(w4, ts, s);
+            if (tris.size() == soup.size()) REQUIRE(b88.nodes.size() > 300);
+            for_each_executor([&](const auto& ex, const std::string& exec_name) {
+                CAPTURE(exec_name);
+                // build and build_wide (references from the triangles, facts made with the nodes) are that tree
+                const auto b = ploc::build(ts, cfg, ex);
+                CHECK((b.nodes.size() == bin.nodes.size() && b.prim_ids == bin.prim_ids && b.depth == bin.depth &&
+                       b.excluded == bin.excluded && b.primitive_count == bin.primitive_count &&
+                       (b.nodes.empty() || std::memcmp(b.nodes.data(), bin.nodes.data(), b.nodes.size() * sizeof(b.nodes[0])) == 0)));
+                const auto w = ploc::build_wide<8>(ts, cfg, ex);
+                CHECK((w.nodes.size() == w8.nodes.size() && w.prim_ids == w8.prim_ids && w.depth == w8.depth &&
+                       (w.nodes.empty() || std::memcmp(w.nodes.data(), w8.nodes.data(), w.nodes.size() * sizeof(w.nodes[0])) == 0)));
+                CHECK(test::block_difference(ploc::build_blocks(ts, cfg, ex), b88) == "");
+                CHECK(test::block_difference(ploc::build_blocks<8, 4>(ts, cfg, ex), b84) == "");
+                CHECK(test::block_difference(ploc::build_blocks<4>(ts, cfg, ex), b44) == "");
+            });
+            const auto direct = ploc::build_blocks(ts, cfg);
+            CHECK(sah_cost(direct) == sah_cost(w8));   // the same tree: the same SAH, to the bit
+            CHECK(direct.primitive_count == tris.size());
+        }
+    }
 }

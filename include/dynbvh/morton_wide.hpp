@@ -136,7 +136,7 @@ Sorted<Key> sort_triangles(Source tris, const Exec& ex) {
     // Step 1: centroid bounds of the finite triangles (the chunks of make_references: the same floats).
     const std::size_t tasks = std::clamp<std::size_t>(n / 4096, 1, 4 * ex.concurrency());
     const std::size_t chunk = (n + tasks - 1) / tasks;
-    std::vector<Acc> partial(tasks, empty);
+    scratch_vector<Acc> partial(tasks, empty);   // (with operator new replaced, as in test_mesh_view_alloc, GCC 12 warns of a mismatched new/free in std::vector here)
     ex.for_tasks(tasks, [&](std::size_t k) {
         Acc a = empty;
         for (std::size_t i = std::min(n, k * chunk), e = std::min(n, i + chunk); i < e; ++i) {

@@ -27,6 +27,7 @@
 #include "../executor.hpp"
 #include "references.hpp"
 #include "scratch.hpp"
+#include "simd.hpp"
 
 namespace dynbvh {
 
@@ -63,13 +64,20 @@ namespace detail {
 /// nodes' children as it builds them, such as LBVH).
 template <class T>
 struct RawNodeInfo {
-    Vec3<T> min, max;         ///< box (kept as two corners: no initialisation, written once)
+    /// A box corner with no default member initialisers: Vec3's would zero every entry of a freshly
+    /// sized array of facts (tens of MB per build on large scenes) that the builders overwrite anyway.
+    struct Corner {
+        T x, y, z;
+        Corner& operator=(const Vec3<T>& v) noexcept { x = v.x; y = v.y; z = v.z; return *this; }
+        operator Vec3<T>() const noexcept { return {x, y, z}; }
+    };
+    Corner min, max;          ///< box (kept as two corners: no initialisation, written once)
     float cost;               ///< SAH cost of the subtree as it will be emitted
     std::uint32_t refs;       ///< references below
     std::uint32_t size;       ///< emitted nodes in the subtree (1 when collapsed to a leaf)
     std::uint32_t height;     ///< emitted height (0 when collapsed)
     bool collapsed;
-    AABB<T> box() const noexcept { return {min, max}; }
+    AABB<T> box() const noexcept { return {Vec3<T>(min), Vec3<T>(max)}; }
 };
 
 /// The SAH leaf collapse rule of LeafConfig: a parent's facts from its children's facts.
@@ -83,7 +91,7 @@ struct CollapseRule {
         : ct(float(cfg.cost.ct)), ci(float(cfg.cost.ci)), max_leaf(std::max<std::uint32_t>(1, cfg.max_leaf_size)) {}
 
     /// Facts of a single reference with box `b`.
-    void leaf(const AABB<T>& b, RawNodeInfo<T>& f) const noexcept {
+    DYNBVH_ALWAYS_INLINE void leaf(const AABB<T>& b, RawNodeInfo<T>& f) const noexcept {
         f.min = b.min;
         f.max = b.max;
         f.cost = ci * float(b.half_area());
@@ -94,7 +102,7 @@ struct CollapseRule {
     }
     /// Facts of the inner node over children `l` and `r`: collapsed to a leaf when that is cheaper
     /// (leaf cost Ci*A*N against Ct*A + children) and N <= max_leaf.
-    void parent(const RawNodeInfo<T>& l, const RawNodeInfo<T>& r, RawNodeInfo<T>& f) const noexcept {
+    DYNBVH_ALWAYS_INLINE void parent(const RawNodeInfo<T>& l, const RawNodeInfo<T>& r, RawNodeInfo<T>& f) const noexcept {
         const AABB<T> box = merge(l.box(), r.box());
         f.min = box.min;
         f.max = box.max;

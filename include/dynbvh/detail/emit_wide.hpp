@@ -32,9 +32,11 @@
 #include "../cost.hpp"
 #include "../executor.hpp"
 #include "../wide.hpp"
+#include "../wide_blocks.hpp"
 #include "emit.hpp"
 #include "references.hpp"
 #include "scratch.hpp"
+#include "triangle_block.hpp"
 
 namespace dynbvh {
 namespace detail {
@@ -175,29 +177,73 @@ void compact_wide_references(WideBvh<WNodeT, Prim>& bvh) {
     bvh.prim_ids.resize(out);
 }
 
+/// The W-wide tree type emit_wide_from_info makes: wide_bvh_of<Bvh<NodeT, Prim>, W>, or for
+/// prim::blocks<L> the traced layout (leaves in SIMD triangle blocks, wide_blocks.hpp).
+template <int W, class NodeT, class Prim>
+struct wide_result {
+    using type = wide_bvh_of<Bvh<NodeT, Prim>, W>;
+};
+template <int W, class NodeT, int L>
+struct wide_result<W, NodeT, prim::blocks<L>> {
+    using type = WideBvh<WideNode<typename NodeT::scalar_type, typename NodeT::index_type, W>, prim::blocks<L>>;
+};
+
 /// emit_wide_bvh's top-down pass from the facts of every inner node (computed by compute_node_info or
-/// by the builder itself, as LBVH does). See the file comment. O(n), parallel.
+/// by the builder itself, as LBVH and PLOC do). See the file comment. O(n), parallel.
+/// Prim = prim::blocks<L>: the traced layout in the same pass, the tree
+/// make_wide_blocks<L>(emit_wide_from_info<W, NodeT, prim::indexed>(...), tris) gives, bit for bit: the
+/// references go to a scratch slot array instead of prim_ids, and the step that links the subtrees'
+/// arrays in also packs their leaves (blocks in node order, as make_wide_blocks numbers them), so the
+/// nodes are not walked again, counted and scanned, and no slot array is kept.
 template <int W, class NodeT, class Prim, class T, triangle_source Source, class Exec>
-wide_bvh_of<Bvh<NodeT, Prim>, W> emit_wide_from_info(const BinaryTree& tree, const References<T>& refs, Source tris,
-                                                     std::span<const RawNodeInfo<T>> info, const Exec& ex) {
+typename wide_result<W, NodeT, Prim>::type emit_wide_from_info(const BinaryTree& tree, const References<T>& refs, Source tris,
+                                                              std::span<const RawNodeInfo<T>> info, const Exec& ex) {
     using Index = typename NodeT::index_type;
-    using Result = wide_bvh_of<Bvh<NodeT, Prim>, W>;
+    using Result = typename wide_result<W, NodeT, Prim>::type;
     using WNode = typename Result::node_type;
     using Em = WideEmitter<W, Index, T>;
     using Raw = typename Em::Raw;
+    constexpr int L = Result::block_lanes;   // 0: leaves in prim_ids
     const std::size_t n_refs = refs.size();
     const std::uint32_t root = tree.root;
     // Too deep: the binary emission rebalances, so take its path to keep the same tree.
-    if (n_refs != 0 && !BinaryTree::is_leaf(root) && !info[root].collapsed && info[root].height > max_depth)
-        return make_wide<W>(emit_from_info<NodeT, Prim>(tree, refs, tris, info, ex), ex);
+    if (n_refs != 0 && !BinaryTree::is_leaf(root) && !info[root].collapsed && info[root].height > max_depth) {
+        if constexpr (L != 0) return blocks_of_binary<W, L>(emit_from_info<NodeT, prim::indexed>(tree, refs, tris, info, ex), tris, ex);
+        else return make_wide<W>(emit_from_info<NodeT, Prim>(tree, refs, tris, info, ex), ex);
+    }
 
     Result wide;
     wide.primitive_count = refs.primitive_count;
     wide.excluded = refs.excluded;
     if (n_refs == 0) return wide;
-    wide.prim_ids.resize(n_refs);
-    Em em{tree, refs, info, wide.prim_ids.data()};
+    // The references' slots: the tree's prim_ids, or (blocks) scratch read back while packing.
+    scratch_vector<Index> slots_scratch;
+    auto& slots = L != 0 ? slots_scratch : wide.prim_ids;
+    slots.resize(n_refs);
+    Em em{tree, refs, info, slots.data()};
     std::vector<std::uint32_t> stack;
+    [[maybe_unused]] auto tri_of = [&](std::size_t s) -> decltype(auto) { return tris[slots[s]]; };
+    // The leaf slots of nodes [first, last) of `nodes` packed from block `block` on; each leaf slot is
+    // pointed at its first block. Returns the block after the last.
+    [[maybe_unused]] auto pack_nodes = [&](WNode* first, WNode* last, std::size_t block) {
+        if constexpr (L != 0)
+            for (WNode* w = first; w != last; ++w)
+                for (int s = 0; s < W; ++s)
+                    if (w->count[s] != 0) {
+                        pack_leaf<L>(wide.blocks.data() + block, std::size_t(w->child[s]), std::size_t(w->count[s]), slots.data(),
+                                     n_refs, tri_of);
+                        w->child[s] = Index(block);
+                        block += blocks_for<L>(std::size_t(w->count[s]));
+                    }
+        return block;
+    };
+    [[maybe_unused]] auto count_blocks = [&](const WNode* first, const WNode* last) {
+        std::size_t b = 0;
+        if constexpr (L != 0)
+            for (const WNode* w = first; w != last; ++w)
+                for (int s = 0; s < W; ++s) b += blocks_for<(L == 0 ? 1 : L)>(std::size_t(w->count[s]));
+        return b;
+    };
 
     if (em.emits_leaf(root)) {   // a single leaf: one wide node with one slot
         WNode w;
@@ -206,6 +252,10 @@ wide_bvh_of<Bvh<NodeT, Prim>, W> emit_wide_from_info(const BinaryTree& tree, con
         w.child[0] = 0;
         w.count[0] = em.write_leaf(Raw{root, 0}, stack);
         wide.nodes.push_back(w);
+        if constexpr (L != 0) {
+            wide.blocks.resize(count_blocks(wide.nodes.data(), wide.nodes.data() + 1));
+            pack_nodes(wide.nodes.data(), wide.nodes.data() + 1, 0);
+        }
     } else {
         struct Pending {
             Raw raw;              // raw inner node still to collapse
@@ -240,24 +290,42 @@ wide_bvh_of<Bvh<NodeT, Prim>, W> emit_wide_from_info(const BinaryTree& tree, con
         const std::size_t tasks = queue.size() - head;
         std::vector<scratch_vector<WNode>> local(tasks);
         std::vector<std::uint32_t> local_depth(tasks, 0);
+        std::vector<std::size_t> local_blocks(tasks + 1, 0);   // (blocks) per task, then the first block of each
         const std::size_t binary_nodes = em.size_of(root);
         std::atomic<bool> local_dedup{false};
         ex.for_tasks(tasks, [&](std::size_t k) {
             const Pending& p = queue[head + k];
             scratch_vector<NodeT> bin_nodes(em.size_of(p.raw.id));
-            Emitter<NodeT, T> bin_em{tree, refs, info, bin_nodes, wide.prim_ids};
+            Emitter<NodeT, T> bin_em{tree, refs, info, bin_nodes, slots};
             bin_em.emit_subtree({p.raw.id, {0, 1, p.raw.ref, 0}});   // no rebalancing: the tree is within max_depth
             if (bin_em.deduplicated.load(std::memory_order_relaxed)) local_dedup.store(true, std::memory_order_relaxed);
             const std::span<const NodeT> bin(bin_nodes);
             scratch_vector<WNode>& out = local[k];
             out.reserve(binary_nodes / (6 * tasks) + 8);
             local_depth[k] = collapse_subtree<W>(bin, Index(0), p.depth, out);
+            local_blocks[k + 1] = count_blocks(out.data(), out.data() + out.size());
         });
         if (local_dedup.load()) em.deduplicated.store(true);
         // Step 3: the arrays after the top, linked in, copied with shifted child indices.
         concatenate_wide<W>(top, queue.data() + head, local, local_depth, wide.nodes, wide.depth, ex);
+        if constexpr (L != 0) {
+            // Step 4 (blocks): the top's leaves first, then each task's, in node order (as make_wide_blocks).
+            local_blocks[0] = count_blocks(wide.nodes.data(), wide.nodes.data() + top.size());
+            const std::size_t total = exec::serial{}.exclusive_scan(std::span<const std::size_t>(local_blocks.data(), tasks + 1),
+                                                                     std::span<std::size_t>(local_blocks.data(), tasks + 1));
+            wide.blocks.resize(total);
+            std::vector<std::size_t> node_base(tasks + 2);
+            node_base[0] = 0;
+            node_base[1] = top.size();
+            for (std::size_t k = 0; k < tasks; ++k) node_base[k + 2] = node_base[k + 1] + local[k].size();
+            ex.for_tasks(tasks + 1, [&](std::size_t k) {
+                pack_nodes(wide.nodes.data() + node_base[k], wide.nodes.data() + node_base[k + 1], local_blocks[k]);
+            });
+        }
     }
-    if (em.deduplicated.load()) compact_wide_references(wide);
+    if constexpr (L == 0) {
+        if (em.deduplicated.load()) compact_wide_references(wide);   // (blocks: each leaf packs its own slots)
+    }
     // The leaf-order copy of the triangles (prim::copied).
     if constexpr (Result::precomputed) {
         wide.leaf_triangles.resize(wide.prim_ids.size());
@@ -286,13 +354,24 @@ namespace detail {
 
 /// The whole build of a builder whose topology step sees references alone (PLOC, binned SAH): the
 /// references of `tris` (any triangle source: a span or a MeshView), `topology(refs, cfg, ex)`, then
-/// emission with cfg.leaves, binary when W == 0, else W-wide. One code path for every input.
+/// emission with cfg.leaves, binary when W == 0, else W-wide. One code path for every input. A
+/// topology with `from_triangles` (PLOC) is called as `topology(tris, cfg, info, ex)`: it makes the
+/// references itself and fills the facts of its inner nodes (emission then skips compute_node_info).
 template <int W, class NodeT, class Prim, class Source, class Config, class Topology, class Exec>
 auto build_over(Source tris, const Config& cfg, Topology topology, const Exec& ex) {
-    auto refs = make_references(tris, ex);
-    const BinaryTree tree = topology(refs, cfg, ex);
-    if constexpr (W == 0) return emit_bvh<NodeT, Prim>(tree, refs, tris, cfg.leaves, ex);
-    else return emit_wide_bvh<W, NodeT, Prim>(tree, refs, tris, cfg.leaves, ex);
+    if constexpr (requires { Topology::from_triangles; }) {   // references, tree and facts in one step (PLOC)
+        using T = source_scalar_t<Source>;
+        scratch_vector<RawNodeInfo<T>> info;
+        const auto [refs, tree] = topology(tris, cfg, info, ex);
+        const std::span<const RawNodeInfo<T>> facts(info);
+        if constexpr (W == 0) return emit_from_info<NodeT, Prim>(tree, refs, tris, facts, ex);
+        else return emit_wide_from_info<W, NodeT, Prim>(tree, refs, tris, facts, ex);
+    } else {
+        auto refs = make_references(tris, ex);
+        const BinaryTree tree = topology(refs, cfg, ex);
+        if constexpr (W == 0) return emit_bvh<NodeT, Prim>(tree, refs, tris, cfg.leaves, ex);
+        else return emit_wide_bvh<W, NodeT, Prim>(tree, refs, tris, cfg.leaves, ex);
+    }
 }
 
 } // namespace detail

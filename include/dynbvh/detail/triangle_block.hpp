@@ -111,14 +111,40 @@ struct LeafRange {
     std::size_t first = 0, count = 0;
 };
 
+/// How many prim_ids slots ahead pack_triangle_blocks prefetches the triangle it will gather.
+inline constexpr std::size_t prefetch_distance = 24;
+
+/// Packs one leaf: slots first .. first + count - 1 of `prim_ids` (triangle `tri_of(slot)`) into the
+/// blocks from `b` on, lane by lane in slot order, the last block padded (the one packing loop, shared
+/// by pack_triangle_blocks and the builders that emit blocks directly). Fetches the triangle
+/// prefetch_distance slots ahead (below `slots`).
+template <int L, class Index, class TriOf>
+inline void pack_leaf(TriangleBlock<L>* b, std::size_t first, std::size_t count, const Index* prim_ids, std::size_t slots,
+                      const TriOf& tri_of) {
+    for (std::size_t i = 0; i < count; i += std::size_t(L), ++b) {
+        const std::size_t m = std::min<std::size_t>(std::size_t(L), count - i);
+        for (std::size_t k = 0; k < m; ++k) {
+            const std::size_t slot = first + i + k;
+#if defined(__GNUC__)
+            // The triangles are gathered in leaf order, scattered in memory: fetch a few leaves ahead
+            // (leaves mostly follow one another in prim_ids).
+            // (a MeshView's triangles are made on the fly: nothing to prefetch there)
+            if constexpr (std::is_lvalue_reference_v<decltype(tri_of(slot))>)
+                if (slot + prefetch_distance < slots) __builtin_prefetch(&tri_of(slot + prefetch_distance));
+#else
+            (void)slots;
+#endif
+            b->set(int(k), tri_of(slot), static_cast<std::uint32_t>(prim_ids[slot]));
+        }
+        b->pad(int(m));
+    }
+}
+
 /// Packs `leaves` into `blocks`, in the order given: leaf j's references (slot first .. first+count-1,
 /// triangle `tri_of(slot)`, user index prim_ids[slot]) go to blocks first_block[j] ..
 /// first_block[j] + ceil(count / L) - 1, lane by lane in slot order (the last block padded).
 /// `first_block` gets leaves.size() + 1 entries (the last is the total). O(references), parallel over
 /// leaves (one exclusive scan, one loop).
-/// How many prim_ids slots ahead pack_triangle_blocks prefetches the triangle it will gather.
-inline constexpr std::size_t prefetch_distance = 24;
-
 template <int L, class Index, class TriOf, class Exec = exec::serial>
 void pack_triangle_blocks(std::span<const LeafRange> leaves, std::span<const Index> prim_ids, const TriOf& tri_of,
                           scratch_vector<TriangleBlock<L>>& blocks, scratch_vector<std::size_t>& first_block, const Exec& ex = {}) {
@@ -130,23 +156,7 @@ void pack_triangle_blocks(std::span<const LeafRange> leaves, std::span<const Ind
     blocks.resize(total);
     const std::size_t slots = prim_ids.size();
     ex.for_each(0, n, [&](std::size_t j) {
-        const LeafRange& leaf = leaves[j];
-        TriangleBlock<L>* b = blocks.data() + first_block[j];
-        for (std::size_t i = 0; i < leaf.count; i += std::size_t(L), ++b) {
-            const std::size_t m = std::min<std::size_t>(std::size_t(L), leaf.count - i);
-            for (std::size_t k = 0; k < m; ++k) {
-                const std::size_t slot = leaf.first + i + k;
-#if defined(__GNUC__)
-                // The triangles are gathered in leaf order, scattered in memory: fetch a few leaves ahead
-                // (leaves mostly follow one another in prim_ids).
-                // (a MeshView's triangles are made on the fly: nothing to prefetch there)
-                if constexpr (std::is_lvalue_reference_v<decltype(tri_of(slot))>)
-                    if (slot + prefetch_distance < slots) __builtin_prefetch(&tri_of(slot + prefetch_distance));
-#endif
-                b->set(int(k), tri_of(slot), static_cast<std::uint32_t>(prim_ids[slot]));
-            }
-            b->pad(int(m));
-        }
+        pack_leaf<L>(blocks.data() + first_block[j], leaves[j].first, leaves[j].count, prim_ids.data(), slots, tri_of);
     }, 256);
 }
 
