@@ -5,6 +5,7 @@
 
 #include <embree3/rtcore.h>
 
+#include <algorithm>
 #include <cstring>
 #include <span>
 #include <stdexcept>
@@ -129,13 +130,20 @@ public:
         else rtcOccluded16(v, scene, &ctx, &ray);
         for (int k = 0; k < N; ++k) blocked[k] = valid[k] && ray.tfar[k] < 0 ? 1 : 0;
     }
-    /// Up to 16 rays (rays.size() <= 16) as 16 lanes r[], valid[k] = 1 for the given ones, the rest
-    /// inactive default rays.
-    static void lanes16(std::span<const Rayf> rays, Rayf* r, int* valid) {
+    /// Up to 16 rays (rays.size() <= 16) as one call on 16 lanes: `f(r, valid, res)` traces lanes r[]
+    /// (valid[k] = 1 for the given rays, the rest inactive default rays) into res[], whose first
+    /// rays.size() entries go to out.
+    template <class Out, class F>
+    static void with_lanes16(std::span<const Rayf> rays, std::span<Out> out, const F& f) {
+        Rayf r[16];
+        int valid[16];
+        Out res[16];
         for (std::size_t k = 0; k < 16; ++k) {
             valid[k] = k < rays.size();
             r[k] = valid[k] ? rays[k] : Rayf{};
         }
+        f(static_cast<const Rayf*>(r), static_cast<const int*>(valid), res);
+        std::copy_n(res, std::min<std::size_t>(16, rays.size()), out.begin());
     }
     bool occluded(const Rayf& r) const {
         RTCIntersectContext ctx;

@@ -294,21 +294,11 @@ public:
     /// rtcIntersect16 / rtcOccluded16 when the study traces packets, else ray by ray.
     void intersect_packet(std::span<const Trianglef> tris, std::span<const Rayf> rays, std::span<Hitf> out) const override {
         if (!packets_) return Accel::intersect_packet(tris, rays, out);
-        Rayf r[16];
-        int valid[16];
-        Hitf h[16];
-        bench::EmbreeBvh::lanes16(rays, r, valid);
-        bvh_.intersect_packet<16>(r, valid, h);
-        std::copy_n(h, rays.size(), out.begin());
+        bench::EmbreeBvh::with_lanes16(rays, out, [&](const Rayf* r, const int* v, Hitf* h) { bvh_.intersect_packet<16>(r, v, h); });
     }
     void occluded_packet(std::span<const Trianglef> tris, std::span<const Rayf> rays, std::span<std::uint8_t> out) const override {
         if (!packets_) return Accel::occluded_packet(tris, rays, out);
-        Rayf r[16];
-        int valid[16];
-        std::uint8_t b[16];
-        bench::EmbreeBvh::lanes16(rays, r, valid);
-        bvh_.occluded_packet<16>(r, valid, b);
-        std::copy_n(b, rays.size(), out.begin());
+        bench::EmbreeBvh::with_lanes16(rays, out, [&](const Rayf* r, const int* v, std::uint8_t* b) { bvh_.occluded_packet<16>(r, v, b); });
     }
 
 private:

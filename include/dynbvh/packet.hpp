@@ -841,6 +841,28 @@ struct PacketTraversal {
         }
     }
 
+    /// Each group of the lanes of `packable` (rays of one kind, see same_kind) with at least
+    /// max(min_group, 2) rays: begin_group(g), then `f(g, octant)` (octant: a std::integral_constant of
+    /// the group's direction octant) traces it and returns whether it did. Returns the lanes left to the
+    /// single-ray query: the smaller groups and those f did not trace.
+    template <class F>
+    std::uint32_t for_each_group(std::uint32_t packable, unsigned min_group, const F& f) {
+        std::uint32_t alone = 0;
+        for (std::uint32_t rest = packable; rest != 0;) {
+            const int first = std::countr_zero(rest);
+            const std::uint32_t g = same_kind(rest, first);
+            rest &= ~g;
+            if (unsigned(std::popcount(g)) < std::max(min_group, 2u)) {
+                alone |= g;
+                continue;
+            }
+            begin_group(g);
+            const int octant = int(sign[0] >> first & 1u) | int(sign[1] >> first & 1u) << 1 | int(sign[2] >> first & 1u) << 2;
+            if (!dispatch_octant(octant, [&](auto o) { return f(g, o); })) alone |= g;
+        }
+        return alone;
+    }
+
     /// Traces `group` (octant Oct), on the fixed stack or, for a tree deeper than it, on the heap.
     template <int Oct>
     void trace(std::uint32_t group) {
@@ -884,25 +906,17 @@ void packet_traverse(const WideBvh<WN, P>& bvh, std::span<const Triangle<float>>
     if (bvh.nodes.empty()) return;
     PT st(bvh, tris, packet, cfg);
     const std::uint32_t packable = st.classify(active);
-    std::uint32_t alone = active & ~packable;   // every ray the packet does not take, and the few of a kind
-    for (std::uint32_t rest = packable; rest != 0;) {
-        const int f = std::countr_zero(rest);
-        const std::uint32_t g = st.same_kind(rest, f);
-        rest &= ~g;
-        if (unsigned(std::popcount(g)) < std::max(cfg.min_rays, 2u)) {
-            alone |= g;
-            continue;
-        }
-        st.begin_group(g);
-        dispatch_octant(int(st.sign[0] >> f & 1u) | int(st.sign[1] >> f & 1u) << 1 | int(st.sign[2] >> f & 1u) << 2,
-                        [&](auto o) { st.template trace<decltype(o)::value>(g); });
+    // every ray the packet does not take, and the few of a kind, go alone
+    const std::uint32_t alone = (active & ~packable) | st.for_each_group(packable, cfg.min_rays, [&](std::uint32_t g, auto o) {
+        st.template trace<decltype(o)::value>(g);
         for (std::uint32_t c = g; c != 0; c &= c - 1) {
             const int k = std::countr_zero(c);
             Hit<float> h = st.hit[k];
             if constexpr (!AnyHit) h.prim = st.best[k];
             out.set(k, h);
         }
-    }
+        return true;
+    });
     for (std::uint32_t c = alone; c != 0; c &= c - 1) {
         const int k = std::countr_zero(c);
         out.set(k, single_lane<Policy, AnyHit>(bvh, tris, packet.ray(k)));

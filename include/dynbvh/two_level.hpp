@@ -809,28 +809,13 @@ private:
             typename PT::Entry rays[PT::fixed_cap];                  // run: per-ray entry distances
             detail::IntervalEntry<typename PT::I> group[PT::fixed_cap];   // run_interval: one bound per entry
         } stack;
-        for (std::uint32_t rest = packable; rest != 0;) {
-            const int f = std::countr_zero(rest);
-            const std::uint32_t g = st.same_kind(rest, f);
-            rest &= ~g;
-            if (unsigned(std::popcount(g)) < std::max(cfg.min_rays, 2u)) {
-                alone |= g;
-                continue;
-            }
-            st.begin_group(g);   // per lane: tmax = the ray's, no hit (st.best: the object's triangle)
+        return alone | st.for_each_group(packable, cfg.min_rays, [&](std::uint32_t g, auto o) {
+            constexpr int Oct = decltype(o)::value;
             for (std::uint32_t c = g; c != 0; c &= c - 1) inst[std::countr_zero(c)] = invalid_prim;
             // A coherent group: inner nodes by one interval test for the whole group (packet.hpp); else ray by ray.
-            const bool ok = detail::dispatch_octant(int(st.sign[0] >> f & 1u) | int(st.sign[1] >> f & 1u) << 1 | int(st.sign[2] >> f & 1u) << 2,
-                                                    [&](auto o) {
-                                                        constexpr int Oct = decltype(o)::value;
-                                                        if (st.coherent && cfg.interval)
-                                                            return st.template run_interval<Oct>(g, stack.group, PT::fixed_cap, leaf);
-                                                        return st.template run<Oct, false>(g, stack.rays, PT::fixed_cap, leaf);
-                                                    });
-            if (!ok) [[unlikely]] {   // a top level deeper than its depth field: these rays alone
-                alone |= g;
-                continue;
-            }
+            const bool ok = st.coherent && cfg.interval ? st.template run_interval<Oct>(g, stack.group, PT::fixed_cap, leaf)
+                                                        : st.template run<Oct, false>(g, stack.rays, PT::fixed_cap, leaf);
+            if (!ok) [[unlikely]] return false;   // a top level deeper than its depth field: these rays alone
             for (std::uint32_t c = g; c != 0; c &= c - 1) {
                 const int j = std::countr_zero(c);
                 InstanceHit<float> r;
@@ -841,8 +826,8 @@ private:
                 }
                 out.set(j, r);
             }
-        }
-        return alone;
+            return true;
+        });
     }
 #endif
 
