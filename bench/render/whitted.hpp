@@ -86,24 +86,28 @@ concept PacketTracer = Tracer<T> && requires(const T& t, std::span<const Rayf> r
     t.occluded_packet(r, b);
 };
 
+/// The first 16 of `rays` in lanes 0.. of `p` (the other lanes keep default rays); returns the mask
+/// of the lanes set.
+inline std::uint32_t ray_packet16(std::span<const Rayf> rays, RayPacket<float, 16>& p) {
+    const std::size_t n = std::min<std::size_t>(16, rays.size());
+    for (std::size_t k = 0; k < n; ++k) p.set(int(k), rays[k]);
+    return n >= 16 ? 0xffffu : (1u << n) - 1u;
+}
+
 /// Up to 16 rays through one of our wide trees (`tree`, any wide or block tree) as one packet of
 /// packet.hpp: out[k] (resp. blocked[k]) = the single-ray answer for rays[k], bit for bit.
 template <class Policy, class Tree>
 void intersect_packet(const Tree& tree, std::span<const Trianglef> tris, std::span<const Rayf> rays, std::span<Hitf> out) {
     RayPacket<float, 16> p;
-    const std::size_t n = std::min<std::size_t>(16, rays.size());
-    for (std::size_t k = 0; k < n; ++k) p.set(int(k), rays[k]);
-    const HitPacket<float, 16> h = dynbvh::intersect<Policy>(tree, tris, p, n >= 16 ? 0xffffu : (1u << n) - 1u);
-    for (std::size_t k = 0; k < n; ++k) out[k] = h.hit(int(k));
+    const HitPacket<float, 16> h = dynbvh::intersect<Policy>(tree, tris, p, ray_packet16(rays, p));
+    for (std::size_t k = 0; k < std::min<std::size_t>(16, rays.size()); ++k) out[k] = h.hit(int(k));
 }
 /// See intersect_packet.
 template <class Policy, class Tree>
 void occluded_packet(const Tree& tree, std::span<const Trianglef> tris, std::span<const Rayf> rays, std::span<std::uint8_t> blocked) {
     RayPacket<float, 16> p;
-    const std::size_t n = std::min<std::size_t>(16, rays.size());
-    for (std::size_t k = 0; k < n; ++k) p.set(int(k), rays[k]);
-    const std::uint32_t m = dynbvh::occluded<Policy>(tree, tris, p, n >= 16 ? 0xffffu : (1u << n) - 1u);
-    for (std::size_t k = 0; k < n; ++k) blocked[k] = (m >> k) & 1u;
+    const std::uint32_t m = dynbvh::occluded<Policy>(tree, tris, p, ray_packet16(rays, p));
+    for (std::size_t k = 0; k < std::min<std::size_t>(16, rays.size()); ++k) blocked[k] = (m >> k) & 1u;
 }
 
 /// Primary rays: width() x height() pixels, ray(x, y) through pixel (x, y), row 0 at the top

@@ -41,13 +41,7 @@ void Trees<Prim>::trace(const BuilderSpec& spec, const Backend& backend, std::sp
             using Tree = std::remove_cvref_t<decltype(tree)>;
             if constexpr (requires { Tree::width; }) {   // wide trees: packets of 16 (packet.hpp) unless --rays single
                 if (spec.packets) {
-                    trace_tiles_packets<16>(backend, gen, out, [&](const Rayf* rays, const int* valid, std::uint32_t* prims) {
-                        RayPacket<float, 16> p;
-                        std::uint32_t active = 0;
-                        for (int k = 0; k < 16; ++k) {
-                            p.set(k, rays[k]);
-                            active |= valid[k] ? std::uint32_t(1) << k : 0u;
-                        }
+                    trace_tiles_ray_packets(backend, gen, out, [&](const RayPacket<float, 16>& p, std::uint32_t active, std::uint32_t* prims) {
                         const HitPacket<float, 16> h = dynbvh::intersect<Policy>(tree, tris, p, active);
                         for (int k = 0; k < 16; ++k) prims[k] = h.prim[k];
                     });

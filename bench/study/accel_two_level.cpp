@@ -9,6 +9,7 @@
 #include <dynbvh/builder.hpp>
 #include <dynbvh/two_level.hpp>
 
+#include <render/whitted.hpp>
 #include "dyn_accel.hpp"
 
 namespace dynbvh::study {
@@ -77,13 +78,7 @@ public:
     void trace(std::span<const Trianglef>, const RayGen& gen, std::span<std::uint32_t> out) override {
         const Scene& sc = *scene_;
         if (spec_.packets) {   // packets of 16 through both levels (TwoLevel::intersect of a RayPacket)
-            trace_tiles_packets<16>(backend_, gen, out, [&](const Rayf* rays, const int* valid, std::uint32_t* prims) {
-                RayPacket<float, 16> p;
-                std::uint32_t active = 0;
-                for (int k = 0; k < 16; ++k) {
-                    p.set(k, rays[k]);
-                    active |= valid[k] ? std::uint32_t(1) << k : 0u;
-                }
+            trace_tiles_ray_packets(backend_, gen, out, [&](const RayPacket<float, 16>& p, std::uint32_t active, std::uint32_t* prims) {
                 const InstanceHitPacket<float, 16> h = sc.intersect(p, active);
                 for (int k = 0; k < 16; ++k) prims[k] = frame_prim(h.hit(k)).prim;
             });
@@ -101,26 +96,18 @@ public:
     bool occluded(std::span<const Trianglef>, const Rayf& r) const override { return scene_->occluded(r); }
     void intersect_packet(std::span<const Trianglef> tris, std::span<const Rayf> rays, std::span<Hitf> out) const override {
         if (!spec_.packets) return Accel::intersect_packet(tris, rays, out);
-        const std::size_t n = std::min<std::size_t>(16, rays.size());
-        const InstanceHitPacket<float, 16> h = scene_->intersect(packet_of(rays), lanes(n));
-        for (std::size_t k = 0; k < n; ++k) out[k] = frame_prim(h.hit(int(k)));
+        RayPacket<float, 16> p;
+        const InstanceHitPacket<float, 16> h = scene_->intersect(p, render::ray_packet16(rays, p));
+        for (std::size_t k = 0; k < std::min<std::size_t>(16, rays.size()); ++k) out[k] = frame_prim(h.hit(int(k)));
     }
     void occluded_packet(std::span<const Trianglef> tris, std::span<const Rayf> rays, std::span<std::uint8_t> out) const override {
         if (!spec_.packets) return Accel::occluded_packet(tris, rays, out);
-        const std::size_t n = std::min<std::size_t>(16, rays.size());
-        const std::uint32_t m = scene_->occluded(packet_of(rays), lanes(n));
-        for (std::size_t k = 0; k < n; ++k) out[k] = (m >> k) & 1u;
+        RayPacket<float, 16> p;
+        const std::uint32_t m = scene_->occluded(p, render::ray_packet16(rays, p));
+        for (std::size_t k = 0; k < std::min<std::size_t>(16, rays.size()); ++k) out[k] = (m >> k) & 1u;
     }
 
 private:
-    /// Up to 16 rays as one packet (lanes past rays.size() default rays, left inactive by lanes(n)).
-    static RayPacket<float, 16> packet_of(std::span<const Rayf> rays) {
-        RayPacket<float, 16> p;
-        for (std::size_t k = 0; k < std::min<std::size_t>(16, rays.size()); ++k) p.set(int(k), rays[k]);
-        return p;
-    }
-    static std::uint32_t lanes(std::size_t n) { return n >= 16 ? 0xffffu : (std::uint32_t(1) << n) - 1u; }
-
     /// The hit with prim = the frame's triangle index (object's first triangle + the object's triangle).
     Hitf frame_prim(const InstanceHit<float>& h) const {
         Hitf out = h;

@@ -13,6 +13,7 @@
 #include <dynbvh/kbvh.hpp>
 #include <dynbvh/lbvh.hpp>
 #include <dynbvh/morton_wide.hpp>
+#include <dynbvh/packet.hpp>
 #include <dynbvh/ploc.hpp>
 #include <dynbvh/refit.hpp>
 #include <dynbvh/sah.hpp>
@@ -48,6 +49,21 @@ void trace_tiles_packets(const Backend& backend, const RayGen& gen, std::span<st
             for (int j = 0; j < N; ++j)
                 if (valid[j]) out[std::size_t(y0 + j / 4) * w + std::size_t(x0 + j % 4)] = prims[j];
         });
+    });
+}
+
+/// trace_tiles_packets<16> with each packet as a RayPacket: `isect(packet, active, prims)` (active: the
+/// mask of the lanes inside the tile) writes the hit triangles of the active lanes.
+template <class Intersect>
+void trace_tiles_ray_packets(const Backend& backend, const RayGen& gen, std::span<std::uint32_t> out, const Intersect& isect) {
+    trace_tiles_packets<16>(backend, gen, out, [&](const Rayf* rays, const int* valid, std::uint32_t* prims) {
+        RayPacket<float, 16> p;
+        std::uint32_t active = 0;
+        for (int k = 0; k < 16; ++k) {
+            p.set(k, rays[k]);
+            active |= valid[k] ? std::uint32_t(1) << k : 0u;
+        }
+        isect(static_cast<const RayPacket<float, 16>&>(p), active, prims);
     });
 }
 

@@ -775,6 +775,9 @@ private:
         }
         std::uint32_t alone = active & ~packable;
         std::uint32_t inst[std::size_t(N)];
+        // The object-space packet, reused at every instance: only the lanes of m are set and read there
+        // (the others hold default or earlier rays, so the packet set-up's SIMD reads stay defined).
+        RayPacket<float, N> op;
         // A leaf slot: each instance against the lanes of m that reach it, as one object-space packet.
         const auto leaf = [&](I first, I count, std::uint32_t m) {
             for (std::size_t s = first; s < std::size_t(first) + count; ++s) {
@@ -784,7 +787,6 @@ private:
                 }
                 const auto k = static_cast<std::uint32_t>(top8_.prim_ids[s]);
                 const Affine<float>& inv = inverses_[k];
-                RayPacket<float, N> op;
                 for (std::uint32_t c = m; c != 0; c &= c - 1) {
                     const int j = std::countr_zero(c);
                     op.set(j, object_ray(inv, Ray<float>{{packet.org_x[j], packet.org_y[j], packet.org_z[j]},
