@@ -28,11 +28,11 @@ struct Case {
 
 std::vector<Case> cases() {
     std::vector<Case> c;
-    c.push_back({"random soup", random_soup(1000, 1), 100000});
-    c.push_back({"sphere", sphere(16, 32), 100000});
-    c.push_back({"flat (z = 0)", flat_scene(1000), 100000});
+    c.push_back({"random soup", random_soup(1000, 1), 40000});
+    c.push_back({"sphere", sphere(16, 32), 40000});
+    c.push_back({"flat (z = 0)", flat_scene(1000), 40000});
     c.push_back({"identical centroids", identical(300), 20000});   // every hit tests all of them
-    c.push_back({"long thin", long_thin(1000), 100000});
+    c.push_back({"long thin", long_thin(1000), 40000});
     c.push_back({"one triangle", random_soup(1, 5, 0.3f), 20000});
     c.push_back({"two triangles", random_soup(2, 6, 0.3f), 20000});
     auto nan = random_soup(2000, 8);

@@ -291,13 +291,13 @@ void for_each_mesh_and_executor(F&& f) {
 }
 
 TEST_CASE("mesh view: every builder gives the span's tree, bit for bit (binary, 4- and 8-wide, blocks)") {
+    // Each output with each primitive layout where the layout changes the code: the binary emission
+    // with both, the wide emission once per width with each layout (CI time: not all four pairs).
     for_each_mesh_and_executor([](const Mesh& m, auto ex) {
         compare_builds<0, prim::indexed>(m, ex);
         compare_builds<0, prim::copied>(m, ex);
-        compare_builds<4, prim::indexed>(m, ex);
         compare_builds<4, prim::copied>(m, ex);
         compare_builds<8, prim::indexed>(m, ex);
-        compare_builds<8, prim::copied>(m, ex);
     });
 }
 

@@ -9,8 +9,8 @@
 // rays" and the interval traversal on and off. Exact ties (duplicated triangles, shared edges hit
 // exactly) equal brute force including the triangle index; occluded agrees with intersect; rays from
 // inside closed meshes at every vertex and edge never escape through packets; trees deeper than the
-// fixed stack. Built as test_packet (SSE / AVX as compiled), test_packet_sse (-mno-avx) and
-// test_packet_nosimd (-DDYNBVH_NO_SIMD: the single-ray loop).
+// fixed stack. Built as test_packet (SSE / AVX as compiled: the sanitized build is the portable SSE one)
+// and test_packet_nosimd (-DDYNBVH_NO_SIMD: the single-ray loop).
 #include <doctest/doctest.h>
 
 #include <dynbvh/packet.hpp>
