@@ -1,11 +1,13 @@
 # Users who add dynbvh as source (add_subdirectory, FetchContent) compile its headers under their own
 # warning flags. This check compiles, with one compiler (syntax only, so it is fast), under
 #   -std=c++20 -Wall -Wextra -Wpedantic -Wconversion -Wsign-conversion -Wshadow -Werror
-# MODE=headers:         every public header (include/dynbvh/**/*.hpp) alone, as `#include <dynbvh/...>`;
+# MODE=headers:         every public header (include/dynbvh/**/*.hpp) alone, as `#include <dynbvh/...>`
+#                       (with -DALONE=ON; else all of them in one file: the second compiler's warnings);
 # MODE=instantiations:  SOURCES (tests/strict_warnings.cpp: every public template instantiated;
 #                       examples/quickstart.cpp: the README's program) without a backend, and with
 #                       -fopenmp (HAVE_OMP) and -DDYNBVH_WITH_TBB=1 (HAVE_TBB); BACKEND_SOURCES
-#                       (tests/readme_snippets.cpp: the README's code) only with both backends.
+#                       (tests/readme_snippets.cpp: the README's code) only with both backends;
+#                       -DBACKENDS_ONLY=ON: SOURCES only with the backends when there are any.
 # -DCXX=<compiler> -DMODE=headers|instantiations -DINCLUDE_DIR=<include/> -DSOURCES=<a.cpp;b.cpp>
 # -DWORK_DIR=<scratch folder> [-DHAVE_OMP=ON] [-DHAVE_TBB=ON] [-DBACKEND_SOURCES=<c.cpp>]
 # [-DSYSTEM_INCLUDE=<dirs of TBB and doctest, passed as -isystem>]
@@ -36,11 +38,20 @@ if(MODE STREQUAL "headers")
   file(GLOB_RECURSE headers RELATIVE ${INCLUDE_DIR} ${INCLUDE_DIR}/dynbvh/*.hpp)
   list(SORT headers)
   file(MAKE_DIRECTORY ${WORK_DIR})
-  foreach(h ${headers})
-    string(MAKE_C_IDENTIFIER ${h} id)
-    file(WRITE ${WORK_DIR}/${id}.cpp "#include <${h}>\n")
-    check("${h} alone" ${WORK_DIR}/${id}.cpp)
-  endforeach()
+  if(ALONE)
+    foreach(h ${headers})
+      string(MAKE_C_IDENTIFIER ${h} id)
+      file(WRITE ${WORK_DIR}/${id}.cpp "#include <${h}>\n")
+      check("${h} alone" ${WORK_DIR}/${id}.cpp)
+    endforeach()
+  else()
+    set(all "")
+    foreach(h ${headers})
+      string(APPEND all "#include <${h}>\n")
+    endforeach()
+    file(WRITE ${WORK_DIR}/all_headers.cpp "${all}")
+    check("all headers in one file" ${WORK_DIR}/all_headers.cpp)
+  endif()
 elseif(MODE STREQUAL "instantiations")
   set(backends "")
   if(HAVE_OMP)
@@ -52,7 +63,9 @@ elseif(MODE STREQUAL "instantiations")
   list(JOIN backends " " backends_text)
   foreach(src ${SOURCES})
     get_filename_component(name ${src} NAME)
-    check("${name}" ${src})
+    if(NOT backends OR NOT BACKENDS_ONLY)
+      check("${name}" ${src})
+    endif()
     if(backends)
       check("${name} with ${backends_text}" ${backends} ${src})
     endif()
