@@ -82,8 +82,8 @@ void check_packets(const WT& tree, std::span<const Trianglef> tris, std::span<co
     }
 }
 
-/// Every mask kind, N = 8 and 16, several min_rays, interval traversal on and off, for Policy.
-template <class Policy, class WT>
+/// Every mask kind, N = 8 and 16 (16 only when !Both), several min_rays, interval traversal on and off, for Policy.
+template <class Policy, bool Both = true, class WT>
 void check_all_masks(const WT& tree, std::span<const Trianglef> tris, std::span<const Rayf> rays, std::uint64_t seed, Tally& t) {
     Rng rng(seed);
     // (the sanitized build checks memory and UB on two of the five min_rays values; the optimised one all)
@@ -91,12 +91,14 @@ void check_all_masks(const WT& tree, std::span<const Trianglef> tris, std::span<
     for (const unsigned min_rays : min_rays_values)
       for (const bool interval : {true, false}) {
         const PacketConfig cfg{.min_rays = min_rays, .interval = interval};
-        check_packets<Policy, 8>(tree, tris, rays, [](std::size_t) { return ~std::uint32_t(0); }, cfg, t);
         check_packets<Policy, 16>(tree, tris, rays, [](std::size_t) { return ~std::uint32_t(0); }, cfg, t);
-        check_packets<Policy, 8>(tree, tris, rays, [&](std::size_t) { return std::uint32_t(rng.next()); }, cfg, t);
         check_packets<Policy, 16>(tree, tris, rays, [&](std::size_t) { return std::uint32_t(rng.next()); }, cfg, t);
         check_packets<Policy, 16>(tree, tris, rays, [](std::size_t i) { return i % 32 == 0 ? 0x00ffu : 0x0001u; }, cfg, t);
-        check_packets<Policy, 8>(tree, tris, rays, [](std::size_t) { return 0u; }, cfg, t);
+        if constexpr (Both) {
+            check_packets<Policy, 8>(tree, tris, rays, [](std::size_t) { return ~std::uint32_t(0); }, cfg, t);
+            check_packets<Policy, 8>(tree, tris, rays, [&](std::size_t) { return std::uint32_t(rng.next()); }, cfg, t);
+            check_packets<Policy, 8>(tree, tris, rays, [](std::size_t) { return 0u; }, cfg, t);
+        }
     }
 }
 
@@ -162,7 +164,9 @@ std::string run_tree(const std::string& label, const WT& tree, std::span<const T
                      std::uint64_t seed, std::size_t& lanes) {
     Tally t;
     check_all_masks<trace::robust>(tree, tris, rays, seed, t);
-    check_all_masks<trace::policy<box::robust, tri::moller_trumbore>>(tree, tris, rays, seed + 1, t);
+    // (Moller-Trumbore's leaf test through 16-ray packets only: the packet width's code is the robust
+    // policy's, checked at both widths; CI time)
+    check_all_masks<trace::policy<box::robust, tri::moller_trumbore>, false>(tree, tris, rays, seed + 1, t);
     check_packets<trace::fast, 16>(tree, tris, rays, [](std::size_t) { return ~std::uint32_t(0); }, PacketConfig{}, t);
     lanes += t.lanes;
     if (t.bad + t.bad_inactive + t.bad_occluded == 0) return "";
