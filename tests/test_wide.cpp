@@ -16,10 +16,12 @@
 #include "hit_compare.hpp"
 #include "support.hpp"
 
+#include <algorithm>
 #include <bit>
 #include <cstring>
 #include <cmath>
 #include <cstdint>
+#include <iterator>
 #include <limits>
 #include <random>
 #include <sstream>
@@ -453,6 +455,42 @@ TEST_CASE("SSE ray setup gives box::robust::prepared's values, or declines") {
     CHECK(bad == 0);
 }
 #endif
+
+TEST_CASE("child order: the sorting networks sort every 0/1 input; keys order as (distance, slot)") {
+    // Zero-one principle: a comparator network that sorts every 0/1 sequence sorts every sequence.
+    auto sorts_all = [](auto sort, int n) {
+        for (unsigned bits = 0; bits < (1u << n); ++bits) {
+            std::uint64_t k[8];
+            for (int i = 0; i < n; ++i) k[i] = bits >> i & 1u;
+            sort(k);
+            for (int i = 1; i < n; ++i)
+                if (k[i - 1] > k[i]) return false;
+        }
+        return true;
+    };
+    CHECK(sorts_all([](std::uint64_t* k) { detail::sort4(k); }, 4));
+    CHECK(sorts_all([](std::uint64_t* k) { detail::sort8(k); }, 8));
+    // order_by_distance: every count 0..8 (4- and 8-wide), ties by index, signed zeros and infinities
+    Rng r(5);
+    const float values[] = {-std::numeric_limits<float>::infinity(), -2.5f, -0.0f, 0.0f, 1e-30f, 1.0f, 1.0f, 3e38f,
+                            std::numeric_limits<float>::infinity()};
+    for (int trial = 0; trial < 2000; ++trial) {
+        const int w = trial % 2 ? 8 : 4;
+        const int n = int(r.next() % std::uint64_t(w + 1));
+        float d[8];
+        for (int i = 0; i < n; ++i) d[i] = values[r.next() % std::size(values)];
+        int order[8];
+        if (w == 8) detail::order_by_distance<8>(d, n, order);
+        else detail::order_by_distance<4>(d, n, order);
+        std::vector<int> want(static_cast<std::size_t>(n));
+        for (int i = 0; i < n; ++i) want[std::size_t(i)] = i;
+        // (-0 before +0: the keys order the float bits)
+        std::stable_sort(want.begin(), want.end(), [&](int a, int b) {
+            return d[a] < d[b] || (d[a] == d[b] && std::signbit(d[a]) && !std::signbit(d[b]));
+        });
+        CHECK(std::equal(want.begin(), want.end(), order));
+    }
+}
 
 TEST_CASE("conversion: empty tree, one triangle, one leaf, moved tree") {
     const std::vector<Trianglef> none;

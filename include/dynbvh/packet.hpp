@@ -731,9 +731,7 @@ struct PacketTraversal {
                 if (nh != 0) {
                     // nearest first: sort the hit slots by their nearest entry, push all but the nearest
                     int order[WZ];
-                    for (int i = 0; i < nh; ++i) order[i] = i;
-                    for (int i = 1; i < nh; ++i)
-                        for (int j = i; j > 0 && snear[order[j]] < snear[order[j - 1]]; --j) std::swap(order[j], order[j - 1]);
+                    order_by_distance<W>(snear, nh, order);
                     if (sp + std::size_t(nh) > cap) [[unlikely]] return false;
                     const WN& n = bvh.nodes[cur];
                     for (int i = nh - 1; i > 0; --i) {
@@ -805,12 +803,12 @@ struct PacketTraversal {
                         if (sm == 0) continue;
                     }
                     found[nh] = IE{n.child[s], n.count[s], sm, near};
-                    order[nh] = nh;
                     ++nh;
                 }
                 if (nh != 0) {
-                    for (int i = 1; i < nh; ++i)
-                        for (int j = i; j > 0 && found[order[j]].tentry < found[order[j - 1]].tentry; --j) std::swap(order[j], order[j - 1]);
+                    float dist[WZ];
+                    for (int i = 0; i < nh; ++i) dist[i] = found[i].tentry;
+                    order_by_distance<W>(dist, nh, order);
                     if (sp + std::size_t(nh) > cap) [[unlikely]] return false;
                     for (int i = nh - 1; i > 0; --i) stack[sp++] = found[order[i]];
                     const IE& e = found[order[0]];

@@ -170,6 +170,67 @@ struct WideStackEntry {
     T tentry;
 };
 
+/// Slot `slot` with entry distance `t` as an integer key: keys order as (t, slot), for t not NaN (the
+/// float's bits made monotonic: -0 sorts just below +0, which only changes the visit order of exact ties).
+template <class T>
+DYNBVH_ALWAYS_INLINE std::uint64_t sort_key(T t, int slot) noexcept {
+    const float f = float(t);   // (double distances: rounding to float only coarsens the visit order)
+    const std::uint32_t u = std::bit_cast<std::uint32_t>(f);
+    const std::uint32_t ordered = u ^ ((u >> 31) != 0 ? 0xffffffffu : 0x80000000u);
+    return (std::uint64_t(ordered) << 32) | std::uint64_t(slot);
+}
+
+/// Compare-exchange: a <= b afterwards (branch-free: min and max compile to conditional moves).
+DYNBVH_ALWAYS_INLINE void compare_exchange(std::uint64_t& a, std::uint64_t& b) noexcept {
+    const std::uint64_t lo = a < b ? a : b, hi = a < b ? b : a;
+    a = lo;
+    b = hi;
+}
+
+/// Sorting networks on 4 keys (5 compare-exchanges) and 8 keys (19, depth 6); checked on every 0/1
+/// input (the zero-one principle) by tests/test_wide.cpp.
+DYNBVH_ALWAYS_INLINE void sort4(std::uint64_t* k) noexcept {
+    compare_exchange(k[0], k[1]); compare_exchange(k[2], k[3]);
+    compare_exchange(k[0], k[2]); compare_exchange(k[1], k[3]);
+    compare_exchange(k[1], k[2]);
+}
+DYNBVH_ALWAYS_INLINE void sort8(std::uint64_t* k) noexcept {
+    compare_exchange(k[0], k[2]); compare_exchange(k[1], k[3]); compare_exchange(k[4], k[6]); compare_exchange(k[5], k[7]);
+    compare_exchange(k[0], k[4]); compare_exchange(k[1], k[5]); compare_exchange(k[2], k[6]); compare_exchange(k[3], k[7]);
+    compare_exchange(k[0], k[1]); compare_exchange(k[2], k[3]); compare_exchange(k[4], k[5]); compare_exchange(k[6], k[7]);
+    compare_exchange(k[2], k[4]); compare_exchange(k[3], k[5]);
+    compare_exchange(k[1], k[4]); compare_exchange(k[3], k[6]);
+    compare_exchange(k[1], k[2]); compare_exchange(k[3], k[4]); compare_exchange(k[5], k[6]);
+}
+
+/// Sorts key[0 .. m) ascending in place (m <= W, W = 4 or 8; key has W entries): the children of one
+/// wide node in visit order, without an insertion sort's data-dependent branches (they were a third of
+/// the traversal loop's time where many children are hit: long thin crossing triangles).
+template <int W>
+DYNBVH_ALWAYS_INLINE void sort_keys(std::uint64_t* key, int m) noexcept {
+    static_assert(W == 4 || W == 8);
+    if (m <= 2) {
+        if (m == 2) compare_exchange(key[0], key[1]);
+        return;
+    }
+    if (W == 4 || m <= 4) {
+        for (int i = m; i < 4; ++i) key[i] = ~std::uint64_t(0);
+        sort4(key);
+    } else if constexpr (W == 8) {
+        for (int i = m; i < 8; ++i) key[i] = ~std::uint64_t(0);
+        sort8(key);
+    }
+}
+
+/// Fills order[0 .. n) with 0 .. n - 1 sorted by dist[i] (ties by index; n <= W, distances not NaN).
+template <int W, class T>
+DYNBVH_ALWAYS_INLINE void order_by_distance(const T* dist, int n, int* order) noexcept {
+    std::uint64_t key[std::size_t(W)];
+    for (int i = 0; i < n; ++i) key[i] = sort_key(dist[i], i);
+    sort_keys<W>(key, n);
+    for (int i = 0; i < n; ++i) order[i] = int(key[i] & 7u);
+}
+
 /// One step down from wide node `n` whose hit slots are `mask` (entry distances t[slot]): the nearest
 /// child becomes (cur, cur_count), the others go on the stack farthest first, so they pop nearest first.
 /// False (nothing changed) when the stack has no room for them (the caller takes the heap stack).
@@ -196,16 +257,24 @@ DYNBVH_ALWAYS_INLINE bool descend_nearest(const WN& n, unsigned mask, const T* t
         cur_count = n.count[near];
         return true;
     }
-    // Three or more: sort by entry distance, push all but the nearest, farthest first.
+    // Three or more: sort by entry distance (sort_keys), push all but the nearest, farthest first.
     if (sp + (W - 1) > cap) [[unlikely]] return false;
-    int order[std::size_t(W)] = {a, b};
-    int m = 2;
-    for (; mask != 0; mask &= mask - 1) order[m++] = std::countr_zero(mask);
-    for (int i = 1; i < m; ++i)
-        for (int j = i; j > 0 && t[order[j]] < t[order[j - 1]]; --j) std::swap(order[j], order[j - 1]);
-    for (int i = m - 1; i > 0; --i) stack[sp++] = Entry{n.child[order[i]], n.count[order[i]], t[order[i]]};
-    cur = n.child[order[0]];
-    cur_count = n.count[order[0]];
+    std::uint64_t key[std::size_t(W)];
+    int m = 0;
+    key[m++] = sort_key(t[a], a);
+    key[m++] = sort_key(t[b], b);
+    for (; mask != 0; mask &= mask - 1) {
+        const int c = std::countr_zero(mask);
+        key[m++] = sort_key(t[c], c);
+    }
+    sort_keys<W>(key, m);
+    for (int i = m - 1; i > 0; --i) {
+        const int c = int(key[i] & 7u);
+        stack[sp++] = Entry{n.child[c], n.count[c], t[c]};
+    }
+    const int near = int(key[0] & 7u);
+    cur = n.child[near];
+    cur_count = n.count[near];
     return true;
 }
 
