@@ -7,6 +7,14 @@
 
 namespace dynbvh::test {
 
+/// True when compiled for the sanitizer runs (DYNBVH_TEST_SANITIZED_BUILD, set by tests/CMakeLists.txt):
+/// such builds instantiate fewer combinations of the same code, each one at least once.
+#if defined(DYNBVH_TEST_SANITIZED_BUILD)
+inline constexpr bool sanitized_build = true;
+#else
+inline constexpr bool sanitized_build = false;
+#endif
+
 /// True in the sanitizer runs (tools/test.sh and tools/tsan.sh set DYNBVH_SANITIZED): use smaller counts.
 inline bool sanitized() { return std::getenv("DYNBVH_SANITIZED") != nullptr; }
 

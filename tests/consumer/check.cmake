@@ -3,7 +3,8 @@
 #  2. dynbvh's source tree through add_subdirectory, which must not add install rules of its own.
 # -DSOURCE_DIR -DBINARY_DIR (dynbvh's build) -DWORK_DIR -DVERSION [-DCXX -DLAUNCHER]
 file(REMOVE_RECURSE ${WORK_DIR})
-set(_common -DCMAKE_BUILD_TYPE=Release -DEXPECT_VERSION=${VERSION})
+# (unoptimised: the check is about packaging, and -O0 compiles the five programs in half the time)
+set(_common -DCMAKE_BUILD_TYPE=Debug "-DCMAKE_CXX_FLAGS_DEBUG=-O0" -DEXPECT_VERSION=${VERSION})
 if(CXX)
   list(APPEND _common -DCMAKE_CXX_COMPILER=${CXX})
 endif()
