@@ -108,6 +108,10 @@ inline auto executors() {
 #endif
                       >{};
 }
+/// Whether this build has executor E (executors() lists it).
+template <class E>
+inline constexpr bool has_executor =
+    []<class... Es>(std::tuple<Es...>*) { return (std::is_same_v<E, Es> || ...); }(static_cast<decltype(executors())*>(nullptr));
 template <class E> const char* executor_name() {
     if constexpr (std::is_same_v<E, exec::serial>) return "serial";
 #if defined(_OPENMP)

@@ -298,21 +298,11 @@ TEST_CASE("mesh view: every builder gives the span's tree, bit for bit (binary, 
     // view is read from parallel chunks on both paths, the serial executor the other two (and those of a
     // backend this build lacks). Builders give the same tree on every executor (tested on spans), so
     // each pair's view == span holds on every executor.
-#if defined(_OPENMP)
-    constexpr bool have_omp = true;
-#else
-    constexpr bool have_omp = false;
-#endif
-#if defined(DYNBVH_WITH_TBB)
-    constexpr bool have_tbb = true;
-#else
-    constexpr bool have_tbb = false;
-#endif
     for_each_mesh_and_executor([](const Mesh& m, auto ex) {
         using E = decltype(ex);
         constexpr bool serial = std::is_same_v<E, exec::serial>;
-        if constexpr (std::is_same_v<E, exec::tbb> || (serial && !have_tbb)) compare_builds<0, prim::copied>(m, ex);
-        if constexpr ((!serial && !std::is_same_v<E, exec::tbb>) || (serial && !have_omp)) compare_builds<8, prim::indexed>(m, ex);
+        if constexpr (std::is_same_v<E, exec::tbb> || (serial && !has_executor<exec::tbb>)) compare_builds<0, prim::copied>(m, ex);
+        if constexpr ((!serial && !std::is_same_v<E, exec::tbb>) || (serial && !has_executor<exec::omp>)) compare_builds<8, prim::indexed>(m, ex);
         if constexpr (serial) {
             compare_builds<0, prim::indexed>(m, ex);
             compare_builds<4, prim::copied>(m, ex);
