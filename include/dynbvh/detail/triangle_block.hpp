@@ -24,14 +24,17 @@
 /// X = p[kx] - org[kx] etc. are the scalar test's differences bit for bit (one rounding each). The
 /// sheared x = X - sx Z is within 3u (|X| + |sx Z|) + 2 eta of the scalar test's value whether either
 /// side contracts it into an FMA or not (each is within 2u resp. u of the exact X - sx Z), and
-/// |sx|, |sy| <= 1 (kz is the largest axis), so D = 4u (|X| + |Y| + |Z|) + FLT_MIN covers x and y
-/// (FLT_MIN = 2^-126 stands for 4 eta = 2^-148: a larger bound is as sound, and a subnormal operand would
-/// cost a microcode assist in every shear on Intel cores: measured 3.2x slower packets on n-body).
+/// |sx|, |sy| <= 1 (kz is the largest axis), so D = 4u M + 4 eta covers x and y (M = |X| + |Y| + |Z|).
+/// The filter does not form M: with P = |x| + |y| (as rounded), M <= (1 + 4u)(P + 3|Z|) + 5 eta, so
+/// Dm = 5u (Pm + 3 Zm) + FLT_MIN, over the largest P and |Z| of the three vertices and rounded, is at
+/// least 1.2 times every vertex's D (FLT_MIN = 2^-126 stands for the eta terms).
 /// An edge function F = cx by - cy bx of those perturbed inputs moves by at most
-/// Pc Db + Pb Dc + 2 Dc Db (P = |x| + |y|), and its float evaluation adds at most 3u Pc Pb + 2 eta:
-/// E = Pc (4u Pb + Db) + Dc (Pb + 2 Db) + FLT_MIN bounds |f - F_scalar| (the slack of 4u over 3u and
-/// FLT_MIN over the eta terms absorb the rounding of E itself). Lanes with |X|+|Y|+|Z| summed over the
-/// vertices >= 2^60, or NaN / infinite, are never rejected (no overflow can occur below that).
+/// Pc Db + Pb Dc + 2 Dc Db, and its float evaluation adds at most 3u Pc Pb + 2 eta, so
+/// E = Pm (4u Pm + 2 Dm) + 2 Dm^2 + FLT_MIN, rounded, bounds |f - F_scalar| for all three edges (the
+/// slack of 4u over 3u(1 + u)^2 and of Dm over D absorbs the rounding of E itself). A lane is rejected
+/// when max(fu, fv, fw) > E and min(fu, fv, fw) < -E. Lanes with Pm >= 2^60 are never rejected (below
+/// it no f overflows; an infinite P or |Z| makes E infinite). NaN anywhere in a vertex makes the two
+/// edge functions through it NaN, so at most one f is a number and the lane is kept.
 ///
 /// trace::fast (tri::moller_trumbore): the SIMD test is the scalar test's arithmetic, the same
 /// operations in the same order per lane (including the division), so its t, u, v and hit/miss are
@@ -205,47 +208,40 @@ protected:
 template <class V>
 struct WatertightFilter {
     using R = typename V::reg;
-    /// One vertex: sheared x, y (the scalar test's operations), M = |X| + |Y| + |Z|, P = |x| + |y|, the
-    /// shear uncertainty D = 4u M + FLT_MIN (>= 4 eta; see the file comment), Rb = 4u P + D, Q = P + 2D.
+    /// One vertex: sheared x, y (the scalar test's operations), P = |x| + |y| and |Z|.
     struct Sheared {
-        R x, y, M, P, D, Rb, Q;
+        R x, y, P, Z;
     };
     static DYNBVH_ALWAYS_INLINE Sheared shear(R X, R Y, R Z, R sx, R sy) noexcept {
-        constexpr float u = std::numeric_limits<float>::epsilon() * 0.5f;
-        const R k4u = V::set1(4.0f * u);                              // 4u: covers 3u(1 + u)^k
-        // 4 eta = 2^-148 rounded up to a normal number: no subnormal operand (an FP assist on Intel cores)
-        const R eta4 = V::set1(std::numeric_limits<float>::min());
         Sheared s;
         s.x = V::sub(X, V::mul(sx, Z));
         s.y = V::sub(Y, V::mul(sy, Z));
-        s.M = V::add(V::add(V::abs(X), V::abs(Y)), V::abs(Z));
         s.P = V::add(V::abs(s.x), V::abs(s.y));
-        s.D = V::madd(k4u, s.M, eta4);
-        s.Rb = V::madd(k4u, s.P, s.D);
-        s.Q = V::add(s.P, V::add(s.D, s.D));
+        s.Z = V::abs(Z);
         return s;
     }
     /// Lane mask (all bits of a lane set) of the pairs certainly missed.
     static DYNBVH_ALWAYS_INLINE R rejects(const Sheared& a, const Sheared& bb, const Sheared& c) noexcept {
-        const R tau = V::set1(std::numeric_limits<float>::min());     // covers the eta terms and E's own underflow
-        const R limit = V::set1(0x1p60f);                             // below it nothing overflows
-        const R msum = V::add(V::add(a.M, bb.M), c.M);
-        // Step 3: edge functions U (c, b), V (a, c), W (b, a) in float, each with its bound
-        // E(c, b) = Pc (4u Pb + Db) + Dc (Pb + 2 Db) + FLT_MIN.
+        constexpr float u = std::numeric_limits<float>::epsilon() * 0.5f;
+        // FLT_MIN stands for the eta terms (a larger bound is as sound, and no operand is subnormal:
+        // a microcode assist on Intel cores, measured 3.2x slower packets on n-body)
+        const R tiny = V::set1(std::numeric_limits<float>::min());
+        // Step 3: edge functions U (c, b), V (a, c), W (b, a) in float.
         const R fu = V::sub(V::mul(c.x, bb.y), V::mul(c.y, bb.x));
         const R fv = V::sub(V::mul(a.x, c.y), V::mul(a.y, c.x));
         const R fw = V::sub(V::mul(bb.x, a.y), V::mul(bb.y, a.x));
-        const R eu = V::add(V::madd(c.P, bb.Rb, V::mul(c.D, bb.Q)), tau);
-        const R ev = V::add(V::madd(a.P, c.Rb, V::mul(a.D, c.Q)), tau);
-        const R ew = V::add(V::madd(bb.P, a.Rb, V::mul(bb.D, a.Q)), tau);
-        // Step 4: certainly positive / negative (NaN: neither); reject on two opposite signs.
-        const R pu = V::gt(fu, eu), nu = V::lt(fu, V::neg(eu));
-        const R pv = V::gt(fv, ev), nv = V::lt(fv, V::neg(ev));
-        const R pw = V::gt(fw, ew), nw = V::lt(fw, V::neg(ew));
-        const R rej = V::bor(V::bor(V::band(pu, V::bor(nv, nw)), V::band(nu, V::bor(pv, pw))),
-                             V::bor(V::band(pv, nw), V::band(nv, pw)));
-        const R ok = V::lt(msum, limit);   // false for NaN and infinity
-        return V::band(rej, ok);
+        // Step 4: one bound for all three, E = Pm (4u Pm + 2 Dm) + 2 Dm^2 + FLT_MIN with the shear
+        // uncertainty Dm = 5u (Pm + 3 Zm) + FLT_MIN (Pm, Zm: the largest P, |Z|; see the file comment).
+        const R pm = V::max(V::max(a.P, bb.P), c.P);
+        const R zm = V::max(V::max(a.Z, bb.Z), c.Z);
+        const R dm = V::madd(V::set1(5.0f * u), V::madd(V::set1(3.0f), zm, pm), tiny);
+        const R dm2 = V::add(dm, dm);
+        const R e = V::madd(pm, V::madd(V::set1(4.0f * u), pm, dm2), V::madd(dm2, dm, tiny));
+        // Step 5: reject when one edge function is certainly positive and another certainly negative
+        // (NaN compares false), below 2^60 (no overflow in f).
+        const R fmax = V::max(V::max(fu, fv), fw), fmin = V::min(V::min(fu, fv), fw);
+        const R rej = V::band(V::gt(fmax, e), V::lt(fmin, V::neg(e)));
+        return V::band(rej, V::lt(pm, V::set1(0x1p60f)));
     }
 };
 
