@@ -185,7 +185,10 @@ void compare_builds(const Mesh& m, const Exec& ex) {
         CHECK(want.primitive_count == flat.size());
         CHECK(difference(build(m.view()), want) == "");
         CHECK(difference(build(m.strided()), want) == "");
-        if (!m.indices16.empty()) CHECK(difference(build(m.view16()), want) == "");
+        // (16-bit indices: in sanitized builds with the binary copied pair only, CI time; the other pairs
+        // read them through the same MeshView code)
+        if constexpr (!sanitized_build || (Output == 0 && std::is_same_v<Prim, prim::copied>))
+            if (!m.indices16.empty()) CHECK(difference(build(m.view16()), want) == "");
         if constexpr (Output == 0) {
             // Block packing of that tree, from the view and from the span.
             if constexpr (std::is_same_v<Prim, prim::indexed>) {
