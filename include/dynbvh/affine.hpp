@@ -13,6 +13,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "detail/simd.hpp"
 #include "ray.hpp"
 #include "vec.hpp"
 
@@ -26,11 +27,11 @@ struct Affine {
     std::array<T, 12> m{T(1), T(0), T(0), T(0), T(0), T(1), T(0), T(0), T(0), T(0), T(1), T(0)};
 
     /// L p + t, each row as fma(m0, x, fma(m1, y, fma(m2, z, m3))).
-    Vec3<T> point(const Vec3<T>& p) const noexcept {
+    DYNBVH_ALWAYS_INLINE Vec3<T> point(const Vec3<T>& p) const noexcept {
         return {row(0, p, m[3]), row(1, p, m[7]), row(2, p, m[11])};
     }
     /// L v (directions), each row as fma(m0, x, fma(m1, y, fma(m2, z, 0))).
-    Vec3<T> vector(const Vec3<T>& v) const noexcept {
+    DYNBVH_ALWAYS_INLINE Vec3<T> vector(const Vec3<T>& v) const noexcept {
         return {row(0, v, T(0)), row(1, v, T(0)), row(2, v, T(0))};
     }
     /// Whether all 12 entries are finite.
@@ -47,7 +48,7 @@ struct Affine {
     }
 
 private:
-    T row(std::size_t r, const Vec3<T>& p, T add) const noexcept {
+    DYNBVH_ALWAYS_INLINE T row(std::size_t r, const Vec3<T>& p, T add) const noexcept {
         const T* q = m.data() + 4 * r;
         return std::fma(q[0], p.x, std::fma(q[1], p.y, std::fma(q[2], p.z, add)));
     }
@@ -113,7 +114,7 @@ Affine<T> inverse(const Affine<T>& a, const std::string& what = "transform") {
 /// same [tmin, tmax], so t means the same point in both spaces. The one transformation of the
 /// two-level traversal and of its brute-force reference. O(1).
 template <class T>
-Ray<T> object_ray(const Affine<T>& inv, const Ray<T>& r) noexcept {
+DYNBVH_ALWAYS_INLINE Ray<T> object_ray(const Affine<T>& inv, const Ray<T>& r) noexcept {
     return {inv.point(r.org), inv.vector(r.dir), r.tmin, r.tmax};
 }
 

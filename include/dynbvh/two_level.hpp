@@ -38,8 +38,9 @@
 /// force's order gives it), so the answer does not depend on the order instances are visited in.
 /// Packets (`intersect(RayPacket)`, `occluded(RayPacket)`; packet.hpp): the top level is traversed by
 /// packet.hpp's packet traversal with a leaf step of its own: at each instance, the lanes that reach
-/// its box go into object space together and through the object's tree as one object-space packet (an
-/// affine map keeps coherent rays coherent); every lane gets the single-ray answer, bit for bit.
+/// its box go into object space together (object_ray's fma chains on all lanes at once where FMA is in
+/// hardware: the same bits) and through the object's tree as one object-space packet (an affine map
+/// keeps coherent rays coherent); every lane gets the single-ray answer, bit for bit.
 ///
 /// Exactness contract: `intersect` returns what `brute_force_intersect` returns, which tests every
 /// instance in order with the same object ray (object_ray) and the watertight triangle test against
@@ -749,6 +750,43 @@ private:
     }
 
 #if defined(DYNBVH_SSE)
+    /// The lanes of `m` of the world packet `p`, with the closest t so far `tmax` per lane, in object space
+    /// by `inv`, into `op`: object_ray's operations lane for lane, so the same bits. With FMA in hardware
+    /// every lane is transformed at once (a vector fma rounds as std::fma does), the lanes outside m too
+    /// (they hold the packet's own rays, so op stays defined); without, lane by lane.
+    template <int N>
+    static DYNBVH_ALWAYS_INLINE void object_packet(const Affine<float>& inv, const RayPacket<float, N>& p, const float* tmax,
+                                                   std::uint32_t m, RayPacket<float, N>& op) noexcept {
+#if defined(__FMA__)
+        using V = detail::lanes_for<8>;
+        using R = typename V::reg;
+        const R m0 = V::set1(inv.m[0]), m1 = V::set1(inv.m[1]), m2 = V::set1(inv.m[2]), m3 = V::set1(inv.m[3]);
+        const R m4 = V::set1(inv.m[4]), m5 = V::set1(inv.m[5]), m6 = V::set1(inv.m[6]), m7 = V::set1(inv.m[7]);
+        const R m8 = V::set1(inv.m[8]), m9 = V::set1(inv.m[9]), m10 = V::set1(inv.m[10]), m11 = V::set1(inv.m[11]);
+        const R zero = V::set1(0.0f);
+        for (int o = 0; o < N; o += V::n) {
+            // Affine::point and Affine::vector: fma(m0, x, fma(m1, y, fma(m2, z, m3 or 0))) per row
+            const R x = V::load(p.org_x + o), y = V::load(p.org_y + o), z = V::load(p.org_z + o);
+            V::store(op.org_x + o, V::madd(m0, x, V::madd(m1, y, V::madd(m2, z, m3))));
+            V::store(op.org_y + o, V::madd(m4, x, V::madd(m5, y, V::madd(m6, z, m7))));
+            V::store(op.org_z + o, V::madd(m8, x, V::madd(m9, y, V::madd(m10, z, m11))));
+            const R dx = V::load(p.dir_x + o), dy = V::load(p.dir_y + o), dz = V::load(p.dir_z + o);
+            V::store(op.dir_x + o, V::madd(m0, dx, V::madd(m1, dy, V::madd(m2, dz, zero))));
+            V::store(op.dir_y + o, V::madd(m4, dx, V::madd(m5, dy, V::madd(m6, dz, zero))));
+            V::store(op.dir_z + o, V::madd(m8, dx, V::madd(m9, dy, V::madd(m10, dz, zero))));
+            V::store(op.tmin + o, V::load(p.tmin + o));
+            V::store(op.tmax + o, V::load(tmax + o));
+        }
+        (void)m;
+#else
+        for (std::uint32_t c = m; c != 0; c &= c - 1) {
+            const int j = std::countr_zero(c);
+            op.set(j, object_ray(inv, Ray<float>{{p.org_x[j], p.org_y[j], p.org_z[j]}, {p.dir_x[j], p.dir_y[j], p.dir_z[j]},
+                                                 p.tmin[j], tmax[j]}));
+        }
+#endif
+    }
+
     /// The top level as a packet: packet.hpp's traversal of top8_ (by octant groups; a coherent group tests
     /// inner nodes by one interval test, leaf boxes ray by ray with box::robust's operations, as
     /// trace_top8; other groups every box ray by ray) down to every leaf it reaches; at a leaf, the lanes
@@ -786,13 +824,7 @@ private:
                     if (m == 0) return;
                 }
                 const auto k = static_cast<std::uint32_t>(top8_.prim_ids[s]);
-                const Affine<float>& inv = inverses_[k];
-                for (std::uint32_t c = m; c != 0; c &= c - 1) {
-                    const int j = std::countr_zero(c);
-                    op.set(j, object_ray(inv, Ray<float>{{packet.org_x[j], packet.org_y[j], packet.org_z[j]},
-                                                         {packet.dir_x[j], packet.dir_y[j], packet.dir_z[j]},
-                                                         packet.tmin[j], st.tmax[j]}));
-                }
+                object_packet(inverses_[k], packet, st.tmax, m, op);
                 HitPacket<float, N> h;
                 detail::packet_query<Policy, AnyHit>(objects_[instances_[k].object].traced, std::span<const Triangle<float>>(), op, m,
                                                      cfg, h);
