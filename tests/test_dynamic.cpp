@@ -35,6 +35,20 @@ std::vector<Trianglef> exploding(const std::vector<Trianglef>& base, int f) {
     return out;
 }
 
+/// Frame f of a scene that rearranges itself every frame: every triangle jumps by its own random
+/// offset, new each frame, as large as the scene (a refitted tree is always far worse than a fresh one).
+std::vector<Trianglef> scrambled(const std::vector<Trianglef>& base, int f) {
+    std::vector<Trianglef> out = base;
+    for (std::size_t i = 0; i < out.size(); ++i) {
+        Rng r(7919 * std::uint64_t(f) + i);
+        const Vec3f d{r.uniform(-2, 2), r.uniform(-2, 2), r.uniform(-2, 2)};
+        out[i].p0 += d;
+        out[i].p1 += d;
+        out[i].p2 += d;
+    }
+    return out;
+}
+
 /// Rays from around the scene at points on random triangles (most hit), random directions (most
 /// miss), plus a miss and a NaN ray.
 std::vector<Rayf> probe_rays(const std::vector<Trianglef>& tris, std::size_t n, std::uint64_t seed) {
@@ -74,6 +88,28 @@ void check_exact(const Tree& bvh, const std::vector<Trianglef>& tris, std::uint6
     CHECK(hits > 0);
 }
 
+/// The rebuild-streak rule as dynamic.hpp's file comment states it, kept by the test: after two frames
+/// in a row that rebuilt at the first refit after a rebuild by a clear margin, frames rebuild without
+/// refitting, except every probe-th frame of the run, which refits and applies the rule.
+struct StreakModel {
+    unsigned probe = 8;
+    unsigned streak = 0, probes = 0;
+    bool fresh = true;   // the tree was built at the previous frame
+    /// Whether this frame rebuilds without a refit (then counted).
+    bool direct() {
+        if (!(probe > 1 && streak >= 2 && probes + 1 < probe)) return false;
+        ++probes;
+        return true;
+    }
+    /// A refitted frame whose rule said `rebuild`, `clear` when by the margin.
+    void refitted(bool rebuild, bool clear) {
+        probes = 0;
+        streak = rebuild && clear && fresh ? streak + 1 : 0;
+    }
+    /// At the end of a frame: whether it rebuilt.
+    void end(bool rebuilt) { fresh = rebuilt; }
+};
+
 /// Applies the expected decision `want` to the test's own tree `mine` (a PLOC rebuild, or nothing: it
 /// was refitted already) and checks the policy's report against it; `why` = the reason of a rebuild
 /// after frame 0.
@@ -104,33 +140,43 @@ TEST_CASE("Dynamic: rebuilds exactly when the refitted SAH exceeds the threshold
     // The expectation, computed independently: a tree of our own, refitted each frame, rebuilt by the rule.
     Bvh<> mine;
     double rebuilt_sah = 0;
-    int rebuilds = 0, refits = 0;
-    for (int f = 0; f < 16; ++f) {
-        const auto tris = exploding(base, f);
+    int rebuilds = 0, refits = 0, streaks = 0;
+    StreakModel streak;
+    for (int f = 0; f < 24; ++f) {
+        // from frame 16 on the scene rearranges itself every frame: the rule rebuilds every frame (a streak)
+        const auto tris = f < 16 ? exploding(base, f) : scrambled(base, f);
         const std::span<const Trianglef> s(tris);
         const FrameReport r = dyn.update(s);
         CAPTURE(f);
         CHECK(r.frame == std::size_t(f));
         Decision want = Decision::refit;
+        Reason why = Reason::sah_growth;
         double before = std::numeric_limits<double>::quiet_NaN();
         if (f == 0) {
             want = Decision::rebuild;
             CHECK(r.reason == Reason::first_frame);
+        } else if (streak.direct()) {
+            want = Decision::rebuild;
+            why = Reason::streak;
+            ++streaks;
         } else {
             refit(mine, s, ex);
             before = sah_cost(mine, {}, ex);
             if (before > 1.3 * rebuilt_sah) want = Decision::rebuild;
-            CHECK(same_bits(r.sah_before, before));
+            streak.refitted(want == Decision::rebuild, before >= 2 * 1.3 * rebuilt_sah);
         }
-        expect_decision(r, want, Reason::sah_growth, f, s, mine, rebuilt_sah, rebuilds, refits);
+        CHECK(same_bits(r.sah_before, before));
+        streak.end(want == Decision::rebuild);
+        expect_decision(r, want, why, f, s, mine, rebuilt_sah, rebuilds, refits);
         CHECK(dyn.bvh().nodes.size() == mine.nodes.size());
         CHECK(r.ms >= 0);
         CHECK(structure_problems(dyn.bvh(), tris) == "");
         check_exact(dyn.bvh(), tris, 100 + std::uint64_t(f), "frame " + std::to_string(f));
     }
-    // The script must exercise both branches of the rule.
+    // The script must exercise both branches of the rule, and a streak.
     CHECK(rebuilds >= 3);
     CHECK(refits >= 3);
+    CHECK(streaks >= 3);
 }
 
 TEST_CASE("Dynamic: the amortized rule rebuilds exactly when the estimated trace time lost reaches the rebuild cost") {
@@ -142,20 +188,30 @@ TEST_CASE("Dynamic: the amortized rule rebuilds exactly when the estimated trace
     // refitted each frame; loss = trust * (sum over traced frames of T (1 - s_rebuilt / s), plus this
     // frame's prediction T_prev * s / s_prev * (1 - s_rebuilt / s)); after each rebuild the first trace
     // time moves trust halfway to the measured share of the predicted saving (clamped to [0, 1], >= 1/8).
-    const double trace_ms[] = {10, 12, 9, 30, 30, 4, 4, 50, 1, 1, 1, 20, 20, 20, 20, 20, 20, 20};
+    const double trace_ms[] = {10, 12, 9, 30, 30, 4, 4, 50, 1, 1, 1, 20, 20, 20, 20, 20, 20, 20, 20, 20, 20, 20, 20, 20};
     Bvh<> mine;
     double rebuilt_sah = 0, loss = 0, prev_ms = 0, prev_sah = 0, trust = 1, check_refit = 0, check_fresh = 0;
     bool check = false;
-    int rebuilds = 0, refits = 0, checks = 0;
-    for (int f = 0; f < 18; ++f) {
-        const auto tris = exploding(base, f);
+    int rebuilds = 0, refits = 0, checks = 0, streaks = 0;
+    StreakModel streak;
+    for (int f = 0; f < 24; ++f) {
+        // from frame 18 on the scene rearranges itself every frame: a streak of rebuilds
+        const auto tris = f < 18 ? exploding(base, f) : scrambled(base, f);
         const std::span<const Trianglef> s(tris);
         const FrameReport r = dyn.update(s);
         CAPTURE(f);
         Decision want = Decision::refit;
+        Reason why = Reason::amortized;
         if (f == 0) {
             want = Decision::rebuild;
             CHECK(r.reason == Reason::first_frame);
+        } else if (streak.direct()) {
+            want = Decision::rebuild;
+            why = Reason::streak;
+            ++streaks;
+            CHECK(r.loss_ms == 0);
+            CHECK(r.rebuild_cost_ms == cost);
+            CHECK(std::isnan(r.sah_before));
         } else {
             refit(mine, s, ex);
             const double now = sah_cost(mine, {}, ex);
@@ -168,8 +224,10 @@ TEST_CASE("Dynamic: the amortized rule rebuilds exactly when the estimated trace
                 check = true;
                 check_refit = prev_ms * now / prev_sah;
             }
+            streak.refitted(want == Decision::rebuild, loss + predicted >= 2 * cost);
         }
-        expect_decision(r, want, Reason::amortized, f, s, mine, rebuilt_sah, rebuilds, refits);
+        streak.end(want == Decision::rebuild);
+        expect_decision(r, want, why, f, s, mine, rebuilt_sah, rebuilds, refits);
         if (want == Decision::rebuild) {
             if (f > 0) check_fresh = prev_ms * rebuilt_sah / prev_sah;
             loss = 0;
@@ -191,6 +249,7 @@ TEST_CASE("Dynamic: the amortized rule rebuilds exactly when the estimated trace
     CHECK(rebuilds >= 3);
     CHECK(refits >= 3);
     CHECK(checks >= 2);
+    CHECK(streaks >= 2);
     CHECK(trust < 1);   // the script's times after rebuilds do not show the whole predicted saving
     // Without reported trace times the rule is sah_growth's; bad trace times are ignored; bad costs throw.
     Dynamic<builder::lbvh, Node<>, prim::copied, exec::serial> quiet({.rule = RebuildRule::amortized, .rebuild_threshold = 0});
@@ -217,6 +276,23 @@ TEST_CASE("Dynamic: threshold 0 rebuilds every frame, +inf never rebuilds for SA
         check_exact(always.bvh(), tris, 7, "always");
     }
     CHECK(never.sah() > never.rebuild_sah());
+    // Rebuilding every frame is a streak from frame 3 on: no refit, and every 4th frame of the run
+    // (probe_every = 4) refits to check; probe_every = 0 refits every frame.
+    Dynamic<builder::lbvh, Node<>, prim::copied, exec::serial> probing({.rebuild_threshold = 0, .probe_every = 4});
+    Dynamic<builder::lbvh, Node<>, prim::copied, exec::serial> refitting({.rebuild_threshold = 0, .probe_every = 0});
+    const Reason want[] = {Reason::first_frame, Reason::sah_growth, Reason::sah_growth, Reason::streak, Reason::streak,
+                           Reason::streak, Reason::sah_growth, Reason::streak, Reason::streak, Reason::streak, Reason::sah_growth};
+    for (int f = 0; f < 11; ++f) {
+        CAPTURE(f);
+        const auto tris = exploding(base, f);
+        const FrameReport a = probing.update(tris), b = refitting.update(tris);
+        CHECK(a.decision == Decision::rebuild);
+        CHECK(a.reason == want[f]);
+        CHECK(std::isnan(a.sah_before) == (a.reason != Reason::sah_growth));
+        CHECK(b.reason == (f == 0 ? Reason::first_frame : Reason::sah_growth));
+        CHECK(same_bits(a.sah_after, b.sah_after));   // the same trees either way
+        check_exact(probing.bvh(), tris, 9, "probing");
+    }
     CHECK_THROWS_WITH_AS(Dynamic<>({.rebuild_threshold = -1.0}), doctest::Contains("cfg.rebuild_threshold"), std::invalid_argument);
     CHECK_THROWS_AS(Dynamic<>({.rebuild_threshold = std::numeric_limits<double>::quiet_NaN()}), std::invalid_argument);
 }

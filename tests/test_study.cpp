@@ -261,6 +261,16 @@ TEST_CASE("study: auto (refit or rebuild) records its decisions, consistent with
                 CHECK(f.at("sah_rebuilt").get<double>() == f.at("sah").get<double>());
                 continue;
             }
+            if (why == "streak") {   // a run of rebuilds at every frame: rebuilt without a refit (dynamic.hpp)
+                CHECK(d == "rebuild");
+                CHECK(!async);
+                CHECK(f.at("sah_before").is_null());
+                REQUIRE(k >= 3);
+                CHECK(frames.at(k - 1).at("decision") == "rebuild");
+                CHECK(frames.at(k - 2).at("decision") == "rebuild");
+                CHECK(f.at("sah_rebuilt").get<double>() == f.at("sah").get<double>());
+                continue;
+            }
             const double before = f.at("sah_before").get<double>();
             const double limit = th * frames.at(k - 1).at("sah_rebuilt").get<double>();
             const double loss = f.at("loss_ms").get<double>(), cost = f.at("rebuild_cost_ms").get<double>();

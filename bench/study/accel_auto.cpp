@@ -32,6 +32,7 @@ const char* reason_name(Reason r) {
         case Reason::sah_growth: return "sah_growth";
         case Reason::amortized: return "amortized";
         case Reason::rebuild_ready: return "rebuild_ready";
+        case Reason::streak: return "streak";
     }
     return "?";
 }

@@ -27,6 +27,14 @@
 /// A changed triangle count (topology), or a changed set of non-finite triangles (the builders leave
 /// those out, and refit cannot add them back), rebuilds at once under both rules.
 ///
+/// Rebuild streaks: when the scene moves so much that the rule rebuilds at the first refit after a
+/// rebuild, by a clear margin (the loss at least twice the rebuild cost; for sah_growth the SAH at
+/// least twice the threshold's limit), two frames in a row (n-body, explosions), the refit and SAH
+/// evaluation before each rebuild are wasted work. The policy then rebuilds without them
+/// (`Reason::streak`), and every `DynamicConfig::probe_every`-th frame of the run refits to check that
+/// the rule still rebuilds by that margin; the first probe that does not ends the run. The margin
+/// keeps borderline scenes, where the rule alternates, out of streaks. (Synchronous rebuilds only.)
+///
 /// Asynchronous rebuild (Ize, Wald, Parker 2007, "Asynchronous BVH Construction for Ray Tracing
 /// Dynamic Scenes on Parallel Multi-Core Architectures"): with `async`, a rebuild runs on a background
 /// std::thread over a copy of the frame's triangles while the refitted old tree serves the following
@@ -81,6 +89,7 @@ enum class Reason : std::uint8_t {
     sah_growth,    ///< the refitted SAH exceeded rebuild_threshold times the last rebuild's
     amortized,     ///< the trace time lost to refitting since the last rebuild reached a rebuild's cost
     rebuild_ready, ///< swap: the background rebuild finished
+    streak,        ///< rebuilt without refitting first: a run of rebuilds at every frame (see the file comment)
 };
 
 /// One frame's decision. SAHs are sah_cost values (sah.hpp, the policy's `cost`).
@@ -89,7 +98,7 @@ struct FrameReport {
     Reason reason = Reason::none;          ///< why
     /// SAH of the previous frame's tree refitted to this frame (refit and rebuild on SAH growth); for a
     /// swap the SAH the replaced tree had at the previous frame; NaN when there was no tree to refit
-    /// (first frame, topology or finiteness change).
+    /// (first frame, topology or finiteness change) or it was not refitted (streak).
     double sah_before = std::numeric_limits<double>::quiet_NaN();
     /// SAH of the tree that serves this frame.
     double sah_after = 0;
@@ -133,6 +142,10 @@ struct DynamicConfig {
     double rebuild_ms = 0;
     /// Rebuild on a background thread while refitted trees serve the frames (Ize et al. 2007). Default off.
     bool async = false;
+    /// Rebuild streaks (see the file comment): once two frames in a row rebuilt at their first refit by
+    /// a clear margin, rebuild without refitting, except every probe_every-th frame of the run, which
+    /// refits and applies the rule. Default 8; 0 or 1 always refits first. Not used with async.
+    unsigned probe_every = 8;
     /// The builder's own knobs.
     BuilderConfig builder{};
     /// Ct and Ci of the SAH that the rule compares.
@@ -186,6 +199,9 @@ public:
             check_fresh_ms_ = o.check_fresh_ms_;
             excluded_ids_ = std::move(o.excluded_ids_);
             frame_ = o.frame_;
+            age_ = o.age_;
+            streak_ = o.streak_;
+            probes_ = o.probes_;
             job_ = std::move(o.job_);
         }
         return *this;
@@ -292,6 +308,15 @@ private:
             drop_background();
             rebuild_now(tris, std::move(bad));
             r.decision = Decision::rebuild;
+            streak_ = probes_ = 0;
+        } else if (streaking()) {
+            // Step: a run of rebuilds at every frame: rebuild without the refit the rule would waste.
+            rebuild_now(tris, std::move(bad));
+            r.decision = Decision::rebuild;
+            r.reason = Reason::streak;
+            r.rebuild_cost_ms = rebuild_cost();
+            r.trust = trust_;
+            ++probes_;
         } else if (std::optional<Job> job = take_finished(); job && job->excluded_ids == excluded_ids_) {
             // Step: swap in the background tree, refitted to this frame.
             r.sah_before = sah_;
@@ -308,10 +333,15 @@ private:
             r.rebuild_cost_ms = rebuild_cost();
         } else {
             // Step: refit, then apply the rule.
+            const bool fresh = age_ == 0;   // the tree was built at the previous frame
             refit(tree_, tris, ex_);
+            ++age_;
             sah_ = sah_cost(tree_, cfg_.cost, ex_);
             r.sah_before = sah_;
-            if (grown(r)) {
+            probes_ = 0;
+            const bool rebuild = grown(r);
+            streak_ = rebuild && fresh && clearly(r) && !cfg_.async ? streak_ + 1 : 0;
+            if (rebuild) {
                 if (cfg_.async) {
                     if (!job_) start_background(tris, r);
                     else r.reason = Reason::none;   // one is running already: keep refitting
@@ -360,6 +390,18 @@ private:
         loss_ms_ = 0;
         excluded_ids_ = std::move(bad);
         built_ = true;
+        age_ = 0;
+    }
+
+    /// Whether the rule's rebuild this frame (r from grown()) is by the streak margin (see the file comment).
+    bool clearly(const FrameReport& r) const noexcept {
+        if (r.reason == Reason::amortized) return r.loss_ms >= 2 * r.rebuild_cost_ms;
+        return sah_ >= 2 * cfg_.rebuild_threshold * sah_rebuilt_;
+    }
+    /// Whether this frame rebuilds as part of a streak (see the file comment): two rebuilds in a row at
+    /// the first refit, and this is not the run's probe_every-th frame.
+    bool streaking() const noexcept {
+        return !cfg_.async && cfg_.probe_every > 1 && streak_ >= 2 && probes_ + 1 < cfg_.probe_every;
     }
 
     /// Starts the background rebuild over a copy of `tris` (the caller may change its triangles after update()).
@@ -429,6 +471,9 @@ private:
     double check_refit_ms_ = 0, check_fresh_ms_ = 0;   // ... against these predictions
     std::vector<std::uint32_t> excluded_ids_;   // non-finite triangles of the current tree's build
     std::size_t frame_ = 0;
+    std::size_t age_ = 0;       // refits since the current tree was built
+    unsigned streak_ = 0;       // rebuilds in a row at the first refit after a rebuild
+    unsigned probes_ = 0;       // streak rebuilds since the run's last refit
     std::unique_ptr<Background> job_;
 };
 
