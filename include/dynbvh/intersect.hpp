@@ -345,6 +345,13 @@ struct watertight {
             sx = T(sx_d);
             sy = T(sy_d);
         }
+        /// The same for a traceable ray `r` whose dominant axis `axis` and double reciprocal and shears
+        /// (1.0 / double(dir[kz]), double(dir[kx]) * rcp, double(dir[ky]) * rcp) were computed elsewhere
+        /// with those operations (the packet traversal's SIMD set-up): the same members, bit for bit.
+        prepared(const Ray<T>& r, int axis, double rcp, double sxd, double syd) noexcept
+            : org(r.org), kz(axis), sx(T(sxd)), sy(T(syd)), tmin(r.tmin), org_d(r.org), sx_d(sxd), sy_d(syd), rcp_dz(rcp) {
+            detail::check_scalar<T>();
+        }
     };
 
     /// Left to the compiler to inline: traversal calls it once per leaf triangle, and one copy per

@@ -283,6 +283,7 @@ struct PacketTraversal {
     alignas(64) float ix[NZ], iy[NZ], iz[NZ];   // 1 / dir, correctly rounded (box::robust::prepared's inv)
     alignas(64) float tmax[NZ];                 // the closest hit so far; -inf outside the group
     alignas(64) float sx[NZ], sy[NZ];           // watertight: shear (prepared's sx, sy)
+    alignas(64) double rcpd[NZ], sxd[NZ], syd[NZ];   // watertight: prepared's rcp_dz, sx_d, sy_d
     std::uint32_t best[NZ];
     /// Per-lane hits, left uninitialised until begin_group (Hit's member initialisers would fill all N
     /// on every packet, and begin_group sets them again).
@@ -386,14 +387,21 @@ struct PacketTraversal {
 #if defined(DYNBVH_AVX)
             for (int o = 0; o < N; o += 4) {
                 const __m256d rcp = _mm256_div_pd(_mm256_set1_pd(1.0), _mm256_cvtps_pd(_mm_load_ps(d[kz] + o)));
-                _mm_store_ps(sx + o, _mm256_cvtpd_ps(_mm256_mul_pd(_mm256_cvtps_pd(_mm_load_ps(d[kx] + o)), rcp)));
-                _mm_store_ps(sy + o, _mm256_cvtpd_ps(_mm256_mul_pd(_mm256_cvtps_pd(_mm_load_ps(d[ky] + o)), rcp)));
+                const __m256d shx = _mm256_mul_pd(_mm256_cvtps_pd(_mm_load_ps(d[kx] + o)), rcp);
+                const __m256d shy = _mm256_mul_pd(_mm256_cvtps_pd(_mm_load_ps(d[ky] + o)), rcp);
+                _mm256_store_pd(rcpd + o, rcp);
+                _mm256_store_pd(sxd + o, shx);
+                _mm256_store_pd(syd + o, shy);
+                _mm_store_ps(sx + o, _mm256_cvtpd_ps(shx));
+                _mm_store_ps(sy + o, _mm256_cvtpd_ps(shy));
             }
 #else
             for (int k = 0; k < N; ++k) {
-                const double rcp_dz = 1.0 / double(d[kz][k]);
-                sx[k] = float(double(d[kx][k]) * rcp_dz);
-                sy[k] = float(double(d[ky][k]) * rcp_dz);
+                rcpd[k] = 1.0 / double(d[kz][k]);
+                sxd[k] = double(d[kx][k]) * rcpd[k];
+                syd[k] = double(d[ky][k]) * rcpd[k];
+                sx[k] = float(sxd[k]);
+                sy[k] = float(syd[k]);
             }
 #endif
         }
@@ -433,7 +441,11 @@ struct PacketTraversal {
     /// Lane k's triangle-test setup (made once per packet, at its first use).
     DYNBVH_ALWAYS_INLINE const TriPrepared& prepared_lane(int k) noexcept {
         if (!(have_pt >> k & 1u)) [[unlikely]] {
-            ::new (static_cast<void*>(&pt[k].value)) TriPrepared(pk.ray(k));
+            // (watertight: from the group's set-up, begin_group, with the same operations)
+            if constexpr (std::is_same_v<Tri, tri::watertight>)
+                ::new (static_cast<void*>(&pt[k].value)) TriPrepared(pk.ray(k), kz, rcpd[k], sxd[k], syd[k]);
+            else
+                ::new (static_cast<void*>(&pt[k].value)) TriPrepared(pk.ray(k));
             have_pt |= std::uint32_t(1) << k;
         }
         return pt[k].value;
