@@ -465,8 +465,9 @@ Table strategy_table(const StudyResults& r) {
                       "trace time x (1 - rebuilt SAH / refitted SAH)) reaches that rebuild's time (rule=amortized, the "
                       "default), or when the refitted SAH exceeds its threshold times the SAH right after its last rebuild "
                       "(rule=sah); the first frame always rebuilds. Once two frames in a row rebuilt at their first "
-                      "refit by a clear margin (twice the rebuild's cost), frames rebuild without refitting (reason streak), every 8th frame of such a run refitting "
-                      "to check. \"always refit\" is the study's refit (LBVH at the first frame, refitted "
+                      "refit by a clear margin (a loss of twice the rebuild's time; rule=sah: twice the threshold), "
+                      "frames rebuild without refitting (reason streak), every 8th frame of such a run (DynamicConfig's "
+                      "probe_every) refitting to check. \"always refit\" is the study's refit (LBVH at the first frame, refitted "
                       "after); \"vs better of both\" = frame ms / the lower of the two (the issue-13 target is <= 1.05x).");
     return t;
 }

@@ -199,7 +199,7 @@ public:
             check_fresh_ms_ = o.check_fresh_ms_;
             excluded_ids_ = std::move(o.excluded_ids_);
             frame_ = o.frame_;
-            age_ = o.age_;
+            fresh_ = o.fresh_;
             streak_ = o.streak_;
             probes_ = o.probes_;
             job_ = std::move(o.job_);
@@ -314,8 +314,10 @@ private:
             rebuild_now(tris, std::move(bad));
             r.decision = Decision::rebuild;
             r.reason = Reason::streak;
-            r.rebuild_cost_ms = rebuild_cost();
-            r.trust = trust_;
+            if (amortizing()) {   // (what grown() reports under this rule)
+                r.rebuild_cost_ms = rebuild_cost();
+                r.trust = trust_;
+            }
             ++probes_;
         } else if (std::optional<Job> job = take_finished(); job && job->excluded_ids == excluded_ids_) {
             // Step: swap in the background tree, refitted to this frame.
@@ -333,9 +335,9 @@ private:
             r.rebuild_cost_ms = rebuild_cost();
         } else {
             // Step: refit, then apply the rule.
-            const bool fresh = age_ == 0;   // the tree was built at the previous frame
+            const bool fresh = fresh_;
             refit(tree_, tris, ex_);
-            ++age_;
+            fresh_ = false;
             sah_ = sah_cost(tree_, cfg_.cost, ex_);
             r.sah_before = sah_;
             probes_ = 0;
@@ -390,7 +392,7 @@ private:
         loss_ms_ = 0;
         excluded_ids_ = std::move(bad);
         built_ = true;
-        age_ = 0;
+        fresh_ = true;
     }
 
     /// Whether the rule's rebuild this frame (r from grown()) is by the streak margin (see the file comment).
@@ -471,7 +473,7 @@ private:
     double check_refit_ms_ = 0, check_fresh_ms_ = 0;   // ... against these predictions
     std::vector<std::uint32_t> excluded_ids_;   // non-finite triangles of the current tree's build
     std::size_t frame_ = 0;
-    std::size_t age_ = 0;       // refits since the current tree was built
+    bool fresh_ = false;        // the current tree was built at the previous frame (not refitted since)
     unsigned streak_ = 0;       // rebuilds in a row at the first refit after a rebuild
     unsigned probes_ = 0;       // streak rebuilds since the run's last refit
     std::unique_ptr<Background> job_;
