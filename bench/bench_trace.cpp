@@ -181,7 +181,9 @@ int main(int argc, char** argv) {
     const exec::omp bex{.threads = build_threads};
     std::printf("dynbvh-bench-trace: %dx%d primary rays, %d reps (median), max leaf %u, Embree %s, SIMD %s\n", width,
                 height, reps, max_leaf, RTC_VERSION_STRING,
-#if defined(DYNBVH_AVX)
+#if defined(DYNBVH_AVX512)
+                "SSE, AVX for 8-wide nodes, AVX-512 for packets of 16"
+#elif defined(DYNBVH_AVX)
                 "SSE, AVX for 8-wide nodes"
 #elif defined(DYNBVH_SSE)
                 "SSE2"

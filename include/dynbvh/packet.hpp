@@ -51,6 +51,7 @@
 #include <bit>
 #include <cstddef>
 #include <cstdint>
+#include <cstring>
 #include <limits>
 #include <new>
 #include <span>
@@ -214,6 +215,24 @@ DYNBVH_ALWAYS_INLINE __m128 select(__m128 m, __m128 a, __m128 b) noexcept { retu
 #if defined(DYNBVH_AVX)
 DYNBVH_ALWAYS_INLINE __m256 select(__m256 m, __m256 a, __m256 b) noexcept { return _mm256_blendv_ps(b, a, m); }
 #endif
+#if defined(DYNBVH_AVX512)
+DYNBVH_ALWAYS_INLINE __m512 select(__mmask16 m, __m512 a, __m512 b) noexcept { return _mm512_mask_blend_ps(m, b, a); }
+/// Eight lanes of x, the lower (H = 0) or upper (H = 1) ones. (The zero-masked form: in GCC 12 the
+/// unmasked extract, which _mm512_castps512_ps256 uses too, trips -Wuninitialized.)
+template <int H>
+DYNBVH_ALWAYS_INLINE __m256 half8(__m512 x) noexcept {
+    return _mm256_castpd_ps(_mm512_maskz_extractf64x4_pd(__mmask8(0xff), _mm512_castps_pd(x), H));
+}
+DYNBVH_ALWAYS_INLINE float hmin(__m512 x) noexcept { return hmin(_mm256_min_ps(half8<0>(x), half8<1>(x))); }
+DYNBVH_ALWAYS_INLINE float hmax(__m512 x) noexcept { return hmax(_mm256_max_ps(half8<0>(x), half8<1>(x))); }
+
+/// The lanes of a packet of N rays: one AVX-512 step for 16, else AVX (or SSE) steps.
+template <int N>
+using packet_lanes = std::conditional_t<N % 16 == 0, Lanes16, lanes_for<8>>;
+#else
+template <int N>
+using packet_lanes = lanes_for<8>;
+#endif
 
 /// One stack entry of the packet traversal: a node (count 0) or leaf slot, the rays that entered its
 /// box and their entry distances.
@@ -256,7 +275,7 @@ struct IntervalEntry {
 /// gives its ray (see the file comment).
 template <class Tri, bool AnyHit, class WN, class P, int N>
 struct PacketTraversal {
-    using V = lanes_for<8>;   // AVX where compiled in, else SSE
+    using V = packet_lanes<N>;   // AVX-512 for 16 rays where compiled in, else AVX, else SSE
     using R = typename V::reg;
     using I = typename WN::index_type;
     static constexpr int W = WN::width;
@@ -300,6 +319,7 @@ struct PacketTraversal {
         TriPrepared value;
     } pt[NZ];                                   // the triangle test's setup, made at a lane's first candidate
     std::uint32_t have_pt = 0;
+    bool sheared = false;      // watertight: sx, sy, rcpd, sxd, syd made for the group (make_shear)
     std::uint32_t alive = 0;   // lanes not finished (any hit: not yet occluded)
     int kx = 0, ky = 1, kz = 2;
     const float* okx = pk.org_x;   // watertight: origins along kx, ky, kz
@@ -328,12 +348,12 @@ struct PacketTraversal {
             const int o = h * V::n;
             const R dxr = V::load(pk.dir_x + o), dyr = V::load(pk.dir_y + o), dzr = V::load(pk.dir_z + o);
             const R ax = V::abs(dxr), ay = V::abs(dyr), az = V::abs(dzr);
-            const R fin = V::band(V::band(V::band(V::lt(ax, inf), V::lt(ay, inf)), V::band(V::lt(az, inf), V::lt(V::abs(V::load(ox + o)), inf))),
+            const auto fin = V::band(V::band(V::band(V::lt(ax, inf), V::lt(ay, inf)), V::band(V::lt(az, inf), V::lt(V::abs(V::load(ox + o)), inf))),
                                   V::band(V::lt(V::abs(V::load(oy + o)), inf), V::lt(V::abs(V::load(oz + o)), inf)));
-            const R nonzero = V::bor(V::bor(V::ne(dxr, zero), V::ne(dyr, zero)), V::ne(dzr, zero));
-            const R tiny = V::bor(V::bor(V::band(V::gt(ax, zero), V::lt(ax, small)), V::band(V::gt(ay, zero), V::lt(ay, small))),
+            const auto nonzero = V::bor(V::bor(V::ne(dxr, zero), V::ne(dyr, zero)), V::ne(dzr, zero));
+            const auto tiny = V::bor(V::bor(V::band(V::gt(ax, zero), V::lt(ax, small)), V::band(V::gt(ay, zero), V::lt(ay, small))),
                                   V::band(V::gt(az, zero), V::lt(az, small)));
-            const R span = V::le(V::load(pk.tmin + o), V::load(pk.tmax + o));   // false for NaN
+            const auto span = V::le(V::load(pk.tmin + o), V::load(pk.tmax + o));   // false for NaN
             ok |= (V::bits(V::band(V::band(fin, nonzero), span)) & ~V::bits(tiny)) << o;
             V::store(ix + o, V::div(one, dxr));
             V::store(iy + o, V::div(one, dyr));
@@ -361,7 +381,7 @@ struct PacketTraversal {
         return g;
     }
 
-    /// Prepares the group's lanes (tmax, best, hit; the shear for tri::watertight) and the interval
+    /// Prepares the group's lanes (tmax, best, hit; for tri::watertight the axes, the shear later: make_shear) and the interval
     /// bounds (`coherent` when no reciprocal direction component of the group is infinite). Lanes
     /// outside the group get tmax -inf: they never hit and do not widen the group's tmax bound.
     void begin_group(std::uint32_t group) noexcept {
@@ -376,37 +396,13 @@ struct PacketTraversal {
             oky = o[ky];
             okz = o[kz];
         }
-        const float* d[3] = {pk.dir_x, pk.dir_y, pk.dir_z};
+        // (one copy of a miss per lane: the member-wise assignment is three scalar stores per lane)
+        static constexpr Hit<float> miss{};
         for (int k = 0; k < N; ++k) {
             best[k] = invalid_prim;
-            hit[k] = Hit<float>{};
+            std::memcpy(static_cast<void*>(&hit[k]), &miss, sizeof miss);
         }
-        if constexpr (std::is_same_v<Tri, tri::watertight>) {
-            // tri::watertight::prepared's shear, the same operations: rcp = 1.0 / double(dir[kz]),
-            // sx = float(double(dir[kx]) * rcp) (every lane; only the group's are used)
-#if defined(DYNBVH_AVX)
-            for (int o = 0; o < N; o += 4) {
-                const __m256d rcp = _mm256_div_pd(_mm256_set1_pd(1.0), _mm256_cvtps_pd(_mm_load_ps(d[kz] + o)));
-                const __m256d shx = _mm256_mul_pd(_mm256_cvtps_pd(_mm_load_ps(d[kx] + o)), rcp);
-                const __m256d shy = _mm256_mul_pd(_mm256_cvtps_pd(_mm_load_ps(d[ky] + o)), rcp);
-                _mm256_store_pd(rcpd + o, rcp);
-                _mm256_store_pd(sxd + o, shx);
-                _mm256_store_pd(syd + o, shy);
-                _mm_store_ps(sx + o, _mm256_cvtpd_ps(shx));
-                _mm_store_ps(sy + o, _mm256_cvtpd_ps(shy));
-            }
-#else
-            for (int k = 0; k < N; ++k) {
-                rcpd[k] = 1.0 / double(d[kz][k]);
-                sxd[k] = double(d[kx][k]) * rcpd[k];
-                syd[k] = double(d[ky][k]) * rcpd[k];
-                sx[k] = float(sxd[k]);
-                sy[k] = float(syd[k]);
-            }
-#endif
-        }
-        (void)f;
-        (void)d;
+        sheared = false;
         // the group's bounds: min / max over its lanes (the others masked to +-inf); named registers,
         // not arrays (GCC keeps arrays of registers on the stack)
         const R pinf = V::set1(inf), ninf = V::set1(-inf);
@@ -414,7 +410,7 @@ struct PacketTraversal {
         R hox = ninf, hoy = ninf, hoz = ninf, hix = ninf, hiy = ninf, hiz = ninf;
         for (int h = 0; h < NS; ++h) {
             const int o = h * V::n;
-            const R g = V::from_bits(group >> o);   // all bits set in the group's lanes
+            const auto g = V::from_bits(group >> o);   // all bits set in the group's lanes
             V::store(tmax + o, select(g, V::load(pk.tmax + o), ninf));
             const R X = V::load(ox + o), Y = V::load(oy + o), Z = V::load(oz + o);
             const R IX = V::load(ix + o), IY = V::load(iy + o), IZ = V::load(iz + o);
@@ -436,6 +432,34 @@ struct PacketTraversal {
         // interval traversal needs finite reciprocals (no direction component exactly 0)
         coherent = std::abs(ixlo) < inf && std::abs(ixhi) < inf && std::abs(iylo) < inf && std::abs(iyhi) < inf &&
                    std::abs(izlo) < inf && std::abs(izhi) < inf;
+    }
+
+    /// The group's watertight shear (tri::watertight::prepared's, the same operations): rcp = 1.0 /
+    /// double(dir[kz]), sx = float(double(dir[kx]) * rcp), for every lane (only the group's are used).
+    /// Made at the group's first triangle test: most packets of a camera's background reach no leaf.
+    DYNBVH_NOINLINE void make_shear() noexcept {
+        const float* d[3] = {pk.dir_x, pk.dir_y, pk.dir_z};
+#if defined(DYNBVH_AVX)
+        for (int o = 0; o < N; o += 4) {
+            const __m256d rcp = _mm256_div_pd(_mm256_set1_pd(1.0), _mm256_cvtps_pd(_mm_load_ps(d[kz] + o)));
+            const __m256d shx = _mm256_mul_pd(_mm256_cvtps_pd(_mm_load_ps(d[kx] + o)), rcp);
+            const __m256d shy = _mm256_mul_pd(_mm256_cvtps_pd(_mm_load_ps(d[ky] + o)), rcp);
+            _mm256_store_pd(rcpd + o, rcp);
+            _mm256_store_pd(sxd + o, shx);
+            _mm256_store_pd(syd + o, shy);
+            _mm_store_ps(sx + o, _mm256_cvtpd_ps(shx));
+            _mm_store_ps(sy + o, _mm256_cvtpd_ps(shy));
+        }
+#else
+        for (int k = 0; k < N; ++k) {
+            rcpd[k] = 1.0 / double(d[kz][k]);
+            sxd[k] = double(d[kx][k]) * rcpd[k];
+            syd[k] = double(d[ky][k]) * rcpd[k];
+            sx[k] = float(sxd[k]);
+            sy[k] = float(syd[k]);
+        }
+#endif
+        sheared = true;
     }
 
     /// Lane k's triangle-test setup (made once per packet, at its first use).
@@ -472,7 +496,7 @@ struct PacketTraversal {
             const R tn = V::max(z0, V::max(y0, V::max(x0, V::load(tmin + o))));
             R tf = V::min(z1, V::min(y1, V::min(x1, V::load(tmax + o))));
             tf = V::add(tf, V::mul(c, V::abs(tf)));
-            const R hm = V::le(tn, tf);
+            const auto hm = V::le(tn, tf);
             V::store(te + o, tn);
             near = V::min(near, select(hm, tn, inf));
             bits |= V::bits(hm) << o;
@@ -567,39 +591,53 @@ struct PacketTraversal {
         }
     }
 
+    /// tri::watertight, step 1: the lanes of m the SIMD float filter keeps for the triangle `src` (no
+    /// branch on the data, so the filters of a block's triangles overlap; see test_leaf_packet).
+    template <class Src>
+    DYNBVH_ALWAYS_INLINE std::uint32_t filter(const Src& src, std::uint32_t m) noexcept {
+        using F = WatertightFilter<V>;
+        if (!sheared) [[unlikely]] make_shear();
+        const std::size_t X = std::size_t(kx), Y = std::size_t(ky), Z = std::size_t(kz);
+        const R ax = V::set1(src.c(0, X)), ay = V::set1(src.c(0, Y)), az = V::set1(src.c(0, Z));
+        const R bx = V::set1(src.c(1, X)), by = V::set1(src.c(1, Y)), bz = V::set1(src.c(1, Z));
+        const R cx = V::set1(src.c(2, X)), cy = V::set1(src.c(2, Y)), cz = V::set1(src.c(2, Z));
+        std::uint32_t rejected = 0;
+        for (int h = 0; h < NS; ++h) {
+            const int o = h * V::n;
+            if (NS > 1 && (m >> o & step_lanes) == 0) continue;   // no ray of m in this step
+            const R OX = V::load(okx + o), OY = V::load(oky + o), OZ = V::load(okz + o);
+            const R SX = V::load(sx + o), SY = V::load(sy + o);
+            const auto va = F::shear(V::sub(ax, OX), V::sub(ay, OY), V::sub(az, OZ), SX, SY);
+            const auto vb = F::shear(V::sub(bx, OX), V::sub(by, OY), V::sub(bz, OZ), SX, SY);
+            const auto vc = F::shear(V::sub(cx, OX), V::sub(cy, OY), V::sub(cz, OZ), SX, SY);
+            rejected |= V::bits(F::rejects(va, vb, vc)) << o;
+        }
+        return m & ~rejected;
+    }
+
+    /// tri::watertight, step 2: the exact scalar test on each lane of `cand` (what filter kept), in
+    /// lane order, and the hits that replace a lane's closest one.
+    template <class Src>
+    DYNBVH_ALWAYS_INLINE void confirm(const Src& src, std::uint32_t prim, std::uint32_t cand) noexcept {
+        if (cand == 0) return;
+        const Triangle<float> tr = src.get();
+        for (std::uint32_t c = cand; c != 0; c &= c - 1) {
+            const int k = std::countr_zero(c);
+            float t, u, v;
+            if (!tri::watertight::test(prepared_lane(k), tr, tmax[k], t, u, v)) continue;
+            if constexpr (!AnyHit)
+                if (!replaces_hit(t, tmax[k], prim, best[k])) continue;
+            take(k, t, u, v, prim);
+        }
+    }
+
     /// A triangle (user index prim) against the rays of m. `src.c(vertex, axis)` reads a coordinate,
     /// `src.get()` the whole triangle (block lanes are read in place; the triangle is rebuilt only for
     /// the scalar confirmations).
     template <class Src>
     DYNBVH_ALWAYS_INLINE void test_triangle(const Src& src, std::uint32_t prim, std::uint32_t m) noexcept {
         if constexpr (std::is_same_v<Tri, tri::watertight>) {
-            using F = WatertightFilter<V>;
-            const std::size_t X = std::size_t(kx), Y = std::size_t(ky), Z = std::size_t(kz);
-            const R ax = V::set1(src.c(0, X)), ay = V::set1(src.c(0, Y)), az = V::set1(src.c(0, Z));
-            const R bx = V::set1(src.c(1, X)), by = V::set1(src.c(1, Y)), bz = V::set1(src.c(1, Z));
-            const R cx = V::set1(src.c(2, X)), cy = V::set1(src.c(2, Y)), cz = V::set1(src.c(2, Z));
-            std::uint32_t rejected = 0;
-            for (int h = 0; h < NS; ++h) {
-                const int o = h * V::n;
-                if (NS > 1 && (m >> o & step_lanes) == 0) continue;   // no ray of m in this step
-                const R OX = V::load(okx + o), OY = V::load(oky + o), OZ = V::load(okz + o);
-                const R SX = V::load(sx + o), SY = V::load(sy + o);
-                const auto va = F::shear(V::sub(ax, OX), V::sub(ay, OY), V::sub(az, OZ), SX, SY);
-                const auto vb = F::shear(V::sub(bx, OX), V::sub(by, OY), V::sub(bz, OZ), SX, SY);
-                const auto vc = F::shear(V::sub(cx, OX), V::sub(cy, OY), V::sub(cz, OZ), SX, SY);
-                rejected |= V::bits(F::rejects(va, vb, vc)) << o;
-            }
-            std::uint32_t cand = m & ~rejected;
-            if (cand == 0) return;
-            const Triangle<float> tr = src.get();
-            for (std::uint32_t c = cand; c != 0; c &= c - 1) {
-                const int k = std::countr_zero(c);
-                float t, u, v;
-                if (!tri::watertight::test(prepared_lane(k), tr, tmax[k], t, u, v)) continue;
-                if constexpr (!AnyHit)
-                    if (!replaces_hit(t, tmax[k], prim, best[k])) continue;
-                take(k, t, u, v, prim);
-            }
+            confirm(src, prim, filter(src, m));
         } else if constexpr (std::is_same_v<Tri, tri::moller_trumbore>) {
             // the scalar test's operations lane by lane (vec.hpp's cross and dot, one division)
             const float p0x_ = src.c(0, 0), p0y_ = src.c(0, 1), p0z_ = src.c(0, 2);
@@ -627,7 +665,7 @@ struct PacketTraversal {
                 const R qz = V::sub(V::mul(tvx, e1y), V::mul(tvy, e1x));
                 const R v = V::mul(V::add(V::add(V::mul(DX, qx), V::mul(DY, qy)), V::mul(DZ, qz)), inv);
                 const R t = V::mul(V::add(V::add(V::mul(e2x, qx), V::mul(e2y, qy)), V::mul(e2z, qz)), inv);
-                const R okr = V::band(V::band(V::band(V::ne(det, zero), V::ge(u, zero)), V::band(V::le(u, one), V::ge(v, zero))),
+                const auto okr = V::band(V::band(V::band(V::ne(det, zero), V::ge(u, zero)), V::band(V::le(u, one), V::ge(v, zero))),
                                       V::band(V::le(V::add(u, v), one),
                                               V::band(V::ge(t, V::load(tmin + o)), V::le(t, V::load(tmax + o)))));
                 V::store(tt + o, t);
@@ -663,6 +701,19 @@ struct PacketTraversal {
             const std::size_t end = std::size_t(first) + blocks_for<BL>(count);
             for (std::size_t i = first; i < end; ++i) {
                 const auto& b = blocks[i];
+                if constexpr (std::is_same_v<Tri, tri::watertight>) {
+                    // every triangle's filter first (independent, so they overlap), then the exact tests
+                    // in the block's order (the filter does not depend on tmax: the same answers)
+                    if constexpr (AnyHit)
+                        if ((m &= alive) == 0) return;
+                    std::uint32_t cand[std::size_t(BL)];
+                    for (int j = 0; j < int(b.count); ++j) cand[j] = filter(BlockLane<BL>{b, j}, m);
+                    for (int j = 0; j < int(b.count); ++j) {
+                        if constexpr (AnyHit) cand[j] &= alive;
+                        confirm(BlockLane<BL>{b, j}, b.prim[j], cand[j]);
+                    }
+                    continue;
+                }
                 for (int j = 0; j < int(b.count); ++j) {
                     if constexpr (AnyHit) {
                         m &= alive;

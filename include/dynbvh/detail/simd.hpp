@@ -4,9 +4,12 @@
 ///  - DYNBVH_ALWAYS_INLINE / DYNBVH_NOINLINE: inlining control for the per-box and per-triangle tests.
 ///  - DYNBVH_SSE: defined when SSE2 intrinsics are used (every x86-64 compiler: `__SSE2__` or MSVC's
 ///    `_M_X64`), unless DYNBVH_NO_SIMD is defined. DYNBVH_AVX: also `__AVX__` (e.g. -mavx2, -march=native).
+///    DYNBVH_AVX512: also `__AVX512F__` (e.g. -march=native on a CPU with AVX-512), unless
+///    DYNBVH_NO_AVX512 is defined: packets of 16 rays then take one step per operation (Lanes16).
 ///    The library does not choose instruction sets: the user's compiler flags do.
-///  - detail::Lanes4 (SSE), detail::Lanes8 (AVX) and detail::lanes_for<W>: the few float operations the
-///    wide box tests and the triangle-block tests need, so one test body serves every lane width.
+///  - detail::Lanes4 (SSE), detail::Lanes8 (AVX), detail::Lanes16 (AVX-512) and detail::lanes_for<W>:
+///    the few float operations the wide box tests, the triangle-block tests and the packet traversal
+///    need, so one test body serves every lane width.
 #pragma once
 
 #include <type_traits>
@@ -43,6 +46,9 @@
 #if defined(__AVX__)
 #define DYNBVH_AVX 1
 #endif
+#if defined(__AVX512F__) && !defined(DYNBVH_NO_AVX512)
+#define DYNBVH_AVX512 1
+#endif
 #endif
 
 #if defined(DYNBVH_SSE)
@@ -54,6 +60,7 @@ namespace dynbvh::detail {
 /// The SIMD operations the wide box tests use, on four float lanes (SSE).
 struct Lanes4 {
     using reg = __m128;
+    using mask = reg;   ///< a comparison's result: all bits of a lane set or clear
     static constexpr int n = 4;
     static DYNBVH_ALWAYS_INLINE reg from4(__m128 x) noexcept { return x; }
     static DYNBVH_ALWAYS_INLINE reg set1(float x) noexcept { return _mm_set1_ps(x); }
@@ -108,6 +115,7 @@ struct Lanes4 {
 /// The same operations on eight float lanes (AVX), for 8-wide nodes.
 struct Lanes8 {
     using reg = __m256;
+    using mask = reg;
     static constexpr int n = 8;
     static DYNBVH_ALWAYS_INLINE reg from4(__m128 x) noexcept { return _mm256_insertf128_ps(_mm256_castps128_ps256(x), x, 1); }
     static DYNBVH_ALWAYS_INLINE reg set1(float x) noexcept { return _mm256_set1_ps(x); }
@@ -157,6 +165,48 @@ struct Lanes8 {
 /// The widest lanes that divide W: one AVX step per 8-wide node.
 template <int W>
 using lanes_for = std::conditional_t<W % 8 == 0, Lanes8, Lanes4>;
+
+#if defined(DYNBVH_AVX512)
+/// The same operations on sixteen float lanes (AVX-512F), for packets of 16 rays. Comparisons give
+/// a lane mask (`mask`, one bit per lane) instead of a register with all bits of a lane set; band,
+/// bor, bits and select take either.
+struct Lanes16 {
+    using reg = __m512;
+    using mask = __mmask16;
+    static constexpr int n = 16;
+    static DYNBVH_ALWAYS_INLINE reg set1(float x) noexcept { return _mm512_set1_ps(x); }
+    static DYNBVH_ALWAYS_INLINE reg load(const float* p) noexcept { return _mm512_load_ps(p); }
+    static DYNBVH_ALWAYS_INLINE void store(float* p, reg a) noexcept { _mm512_storeu_ps(p, a); }
+    static DYNBVH_ALWAYS_INLINE reg add(reg a, reg b) noexcept { return _mm512_add_ps(a, b); }
+    static DYNBVH_ALWAYS_INLINE reg sub(reg a, reg b) noexcept { return _mm512_sub_ps(a, b); }
+    static DYNBVH_ALWAYS_INLINE reg mul(reg a, reg b) noexcept { return _mm512_mul_ps(a, b); }
+    // (the zero-masked forms with every lane set: GCC 12's _mm512_min_ps / _mm512_max_ps read an
+    // undefined register and trip -Wuninitialized)
+    static DYNBVH_ALWAYS_INLINE reg min(reg a, reg b) noexcept { return _mm512_maskz_min_ps(mask(0xffff), a, b); }
+    static DYNBVH_ALWAYS_INLINE reg max(reg a, reg b) noexcept { return _mm512_maskz_max_ps(mask(0xffff), a, b); }
+    static DYNBVH_ALWAYS_INLINE reg abs(reg a) noexcept {
+        return _mm512_castsi512_ps(_mm512_and_si512(_mm512_castps_si512(a), _mm512_set1_epi32(0x7fffffff)));
+    }
+    static DYNBVH_ALWAYS_INLINE reg neg(reg a) noexcept {
+        return _mm512_castsi512_ps(_mm512_xor_si512(_mm512_castps_si512(a), _mm512_set1_epi32(int(0x80000000u))));
+    }
+    static DYNBVH_ALWAYS_INLINE reg div(reg a, reg b) noexcept { return _mm512_div_ps(a, b); }
+    static DYNBVH_ALWAYS_INLINE reg madd(reg a, reg b, reg c) noexcept { return _mm512_fmadd_ps(a, b, c); }
+    static DYNBVH_ALWAYS_INLINE mask gt(reg a, reg b) noexcept { return _mm512_cmp_ps_mask(a, b, _CMP_GT_OQ); }
+    static DYNBVH_ALWAYS_INLINE mask lt(reg a, reg b) noexcept { return _mm512_cmp_ps_mask(a, b, _CMP_LT_OQ); }
+    static DYNBVH_ALWAYS_INLINE mask ge(reg a, reg b) noexcept { return _mm512_cmp_ps_mask(a, b, _CMP_GE_OQ); }
+    static DYNBVH_ALWAYS_INLINE mask le(reg a, reg b) noexcept { return _mm512_cmp_ps_mask(a, b, _CMP_LE_OQ); }
+    static DYNBVH_ALWAYS_INLINE mask ne(reg a, reg b) noexcept { return _mm512_cmp_ps_mask(a, b, _CMP_NEQ_UQ); }
+    static DYNBVH_ALWAYS_INLINE mask band(mask a, mask b) noexcept { return mask(a & b); }
+    static DYNBVH_ALWAYS_INLINE mask bor(mask a, mask b) noexcept { return mask(a | b); }
+    static DYNBVH_ALWAYS_INLINE unsigned bits(mask m) noexcept { return unsigned(m); }
+    /// The sign bits of the lanes (as _mm_movemask_ps).
+    static DYNBVH_ALWAYS_INLINE unsigned bits(reg a) noexcept {
+        return unsigned(_mm512_cmplt_epi32_mask(_mm512_castps_si512(a), _mm512_setzero_si512()));
+    }
+    static DYNBVH_ALWAYS_INLINE mask from_bits(unsigned b) noexcept { return mask(b & 0xffffu); }
+};
+#endif
 #else
 /// Without AVX, an 8-wide node takes two SSE steps.
 template <int W>

@@ -220,8 +220,8 @@ struct WatertightFilter {
         s.Z = V::abs(Z);
         return s;
     }
-    /// Lane mask (all bits of a lane set) of the pairs certainly missed.
-    static DYNBVH_ALWAYS_INLINE R rejects(const Sheared& a, const Sheared& bb, const Sheared& c) noexcept {
+    /// Lane mask (V::mask) of the pairs certainly missed.
+    static DYNBVH_ALWAYS_INLINE typename V::mask rejects(const Sheared& a, const Sheared& bb, const Sheared& c) noexcept {
         constexpr float u = std::numeric_limits<float>::epsilon() * 0.5f;
         // FLT_MIN stands for the eta terms (a larger bound is as sound, and no operand is subnormal:
         // a microcode assist on Intel cores, measured 3.2x slower packets on n-body)
@@ -240,7 +240,7 @@ struct WatertightFilter {
         // Step 5: reject when one edge function is certainly positive and another certainly negative
         // (NaN compares false), below 2^60 (no overflow in f).
         const R fmax = V::max(V::max(fu, fv), fw), fmin = V::min(V::min(fu, fv), fw);
-        const R rej = V::band(V::gt(fmax, e), V::lt(fmin, V::neg(e)));
+        const auto rej = V::band(V::gt(fmax, e), V::lt(fmin, V::neg(e)));
         return V::band(rej, V::lt(pm, V::set1(0x1p60f)));
     }
 };
