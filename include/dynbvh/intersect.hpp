@@ -150,6 +150,37 @@ template <class T>
 inline void check_scalar() noexcept {
     static_assert(std::is_same_v<T, float> || std::is_same_v<T, double>, "dynbvh: scalar must be float or double");
 }
+/// The watertight test's products and sums with the roundings spelled out: fused (one rounding) where
+/// the target has FMA, plain otherwise, so that no compiler's contraction choice (-ffp-contract) can
+/// change them, and the packet traversal's SIMD exact test (packet.hpp) gives the same bits.
+/// a - b * c
+template <class T>
+DYNBVH_ALWAYS_INLINE T sub_mul(T a, T b, T c) noexcept {
+#if defined(__FMA__)
+    return std::fma(-b, c, a);
+#else
+    return a - b * c;
+#endif
+}
+/// a * b - c * d (c * d rounded first)
+template <class T>
+DYNBVH_ALWAYS_INLINE T mul_sub_mul(T a, T b, T c, T d) noexcept {
+#if defined(__FMA__)
+    return std::fma(a, b, -(c * d));
+#else
+    return a * b - c * d;
+#endif
+}
+/// a * b + (c * d + e * f) (e * f rounded first)
+template <class T>
+DYNBVH_ALWAYS_INLINE T dot3(T a, T b, T c, T d, T e, T f) noexcept {
+#if defined(__FMA__)
+    return std::fma(a, b, std::fma(c, d, e * f));
+#else
+    return a * b + (c * d + e * f);
+#endif
+}
+
 } // namespace detail
 
 namespace box {
@@ -370,9 +401,10 @@ private:
     static DYNBVH_ALWAYS_INLINE bool test_axes(const prepared<T>& p, const Triangle<T>& tri, T tmax, T& t, T& u, T& v) noexcept {
         using W = double;  // edge-function precision: exact signs for float, see the class comment
         const Vec3<T> A = tri.p0 - p.org, B = tri.p1 - p.org, C = tri.p2 - p.org;
-        const T ax = A[KX] - p.sx * A[KZ], ay = A[KY] - p.sy * A[KZ];
-        const T bx = B[KX] - p.sx * B[KZ], by = B[KY] - p.sy * B[KZ];
-        const T cx = C[KX] - p.sx * C[KZ], cy = C[KY] - p.sy * C[KZ];
+        using detail::sub_mul;
+        const T ax = sub_mul(A[KX], p.sx, A[KZ]), ay = sub_mul(A[KY], p.sy, A[KZ]);
+        const T bx = sub_mul(B[KX], p.sx, B[KZ]), by = sub_mul(B[KY], p.sy, B[KZ]);
+        const T cx = sub_mul(C[KX], p.sx, C[KZ]), cy = sub_mul(C[KY], p.sy, C[KZ]);
 
         W eu, ev, ew;
         if constexpr (std::is_same_v<T, float>) {
@@ -419,12 +451,14 @@ private:
         const double s = det > 0 ? 1.0 : -1.0;
         const double az = double(tri.p0[KZ]) - p.org_d[KZ], bz = double(tri.p1[KZ]) - p.org_d[KZ],
                      cz = double(tri.p2[KZ]) - p.org_d[KZ];
-        const double axd = (double(tri.p0[KX]) - p.org_d[KX]) - p.sx_d * az, ayd = (double(tri.p0[KY]) - p.org_d[KY]) - p.sy_d * az;
-        const double bxd = (double(tri.p1[KX]) - p.org_d[KX]) - p.sx_d * bz, byd = (double(tri.p1[KY]) - p.org_d[KY]) - p.sy_d * bz;
-        const double cxd = (double(tri.p2[KX]) - p.org_d[KX]) - p.sx_d * cz, cyd = (double(tri.p2[KY]) - p.org_d[KY]) - p.sy_d * cz;
-        double w0 = s * (cxd * byd - cyd * bxd);
-        double w1 = s * (axd * cyd - ayd * cxd);
-        double w2 = s * (bxd * ayd - byd * axd);
+        using detail::sub_mul;
+        using detail::mul_sub_mul;
+        const double axd = sub_mul(double(tri.p0[KX]) - p.org_d[KX], p.sx_d, az), ayd = sub_mul(double(tri.p0[KY]) - p.org_d[KY], p.sy_d, az);
+        const double bxd = sub_mul(double(tri.p1[KX]) - p.org_d[KX], p.sx_d, bz), byd = sub_mul(double(tri.p1[KY]) - p.org_d[KY], p.sy_d, bz);
+        const double cxd = sub_mul(double(tri.p2[KX]) - p.org_d[KX], p.sx_d, cz), cyd = sub_mul(double(tri.p2[KY]) - p.org_d[KY], p.sy_d, cz);
+        double w0 = s * mul_sub_mul(cxd, byd, cyd, bxd);
+        double w1 = s * mul_sub_mul(axd, cyd, ayd, cxd);
+        double w2 = s * mul_sub_mul(bxd, ayd, byd, axd);
         double sum = w0 + w1 + w2;
         // The accurate weights are only trusted when their sum (twice the projected area) exceeds its
         // own rounding error: for a zero-area triangle whose line the ray meets, or a triangle the
@@ -442,7 +476,7 @@ private:
         }
         // one division for t, u and v (t is within 2.5 ulp of double before its rounding to T)
         const double inv = 1.0 / sum;
-        const T tt = T((w0 * az + w1 * bz + w2 * cz) * p.rcp_dz * inv);
+        const T tt = T(detail::dot3(w0, az, w1, bz, w2, cz) * p.rcp_dz * inv);
         if (!(tt >= p.tmin && tt <= tmax)) return false;
         t = tt + T(0);  // -0 -> +0, so equal hits compare equal bit for bit
         u = T(w1 * inv);

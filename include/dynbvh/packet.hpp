@@ -23,7 +23,7 @@
 ///
 /// Traversal (float trees, box::robust, with SSE; detail::PacketTraversal): the packet's set-up is SIMD
 /// across its rays (validity, reciprocal directions, octants, dominant axes); the triangle test's
-/// per-ray set-up waits for a ray's first candidate triangle. The active rays are grouped by direction
+/// shear waits for a group's first triangle, and its per-ray set-up for a ray's first candidate. The active rays are grouped by direction
 /// octant (and, for tri::watertight, dominant axis); a group of at least `PacketConfig::min_rays` rays
 /// is traced as one packet, the others ray by ray. A coherent group (no direction component exactly 0)
 /// tests the W child boxes of an inner node for all its rays at once by interval arithmetic over the
@@ -38,8 +38,12 @@
 /// Leaves: block leaves (prim::blocks) and index leaves test each triangle against all rays of the
 /// packet at once: tri::watertight with the SIMD float filter of the block test (detail::WatertightFilter,
 /// the same forward error bound per (ray, triangle) pair) and the exact scalar test on each kept ray with
-/// that ray's tmax; tri::moller_trumbore with the scalar test's operations lane by lane (bit for bit as
-/// long as neither side is FMA-contracted, as for the block test).
+/// that ray's tmax (a block's filters all run before its exact tests, in the block's order);
+/// tri::moller_trumbore with the scalar test's operations lane by lane (bit for bit as long as neither
+/// side is FMA-contracted, as for the block test).
+/// SIMD width: packets of 16 take one AVX-512 step per operation where the compiler targets AVX-512F
+/// (detail::Lanes16, unless DYNBVH_NO_AVX512), else two AVX steps (or four SSE ones); packets of 8 take
+/// AVX (or SSE) steps. The answers do not depend on it.
 /// Other cases (double trees, box::fast, -DDYNBVH_NO_SIMD, non-x86): a loop of single-ray queries, which
 /// gives the same answers by construction. (box::fast is not conservative, so its answers could depend
 /// on the visit order: its packets are traced ray by ray.)
@@ -620,6 +624,28 @@ struct PacketTraversal {
     template <class Src>
     DYNBVH_ALWAYS_INLINE void confirm(const Src& src, std::uint32_t prim, std::uint32_t cand) noexcept {
         if (cand == 0) return;
+#if defined(DYNBVH_AVX)
+        // four lanes at a time where two or more of them are candidates (a large triangle under a
+        // packet), a lone candidate alone
+        std::uint32_t lone = 0;
+        for (int o = 0; o < N; o += 4) {
+            const std::uint32_t q = cand >> o & 0xfu;
+            if (q == 0) continue;
+            if ((q & (q - 1)) == 0) {
+                lone |= q << o;
+                continue;
+            }
+            alignas(16) float t4[4], u4[4], v4[4];
+            for (std::uint32_t c = exact4(src, o, t4, u4, v4) & q; c != 0; c &= c - 1) {
+                const int j = std::countr_zero(c), k = o + j;
+                if constexpr (!AnyHit)
+                    if (!replaces_hit(t4[j], tmax[k], prim, best[k])) continue;
+                take(k, t4[j], u4[j], v4[j], prim);
+            }
+        }
+        cand = lone;
+        if (cand == 0) return;
+#endif
         const Triangle<float> tr = src.get();
         for (std::uint32_t c = cand; c != 0; c &= c - 1) {
             const int k = std::countr_zero(c);
@@ -630,6 +656,103 @@ struct PacketTraversal {
             take(k, t, u, v, prim);
         }
     }
+
+#if defined(DYNBVH_AVX)
+    /// tri::watertight::test of the triangle `src` on lanes o .. o+3 at once (SSE float, AVX double):
+    /// the scalar test's operations in the same order (the fused ones fused alike, detail::sub_mul
+    /// etc.), so each lane's hit or miss and t, u, v are the scalar test's bits. Bit j of the result:
+    /// lane o + j hits within [tmin, tmax]; its t, u, v are in t4[j], u4[j], v4[j].
+    template <class Src>
+    DYNBVH_ALWAYS_INLINE std::uint32_t exact4(const Src& src, int o, float* t4, float* u4, float* v4) const noexcept {
+        const std::size_t X = std::size_t(kx), Y = std::size_t(ky), Z = std::size_t(kz);
+        const __m128 OX = _mm_loadu_ps(okx + o), OY = _mm_loadu_ps(oky + o), OZ = _mm_loadu_ps(okz + o);
+        const __m128 SX = _mm_loadu_ps(sx + o), SY = _mm_loadu_ps(sy + o);
+        // float: vertex - origin, sheared (tri::watertight's test_axes)
+        const auto fsub_mul = [](__m128 a, __m128 b, __m128 c) {
+#if defined(__FMA__)
+            return _mm_fnmadd_ps(b, c, a);
+#else
+            return _mm_sub_ps(a, _mm_mul_ps(b, c));
+#endif
+        };
+        const auto dsub_mul = [](__m256d a, __m256d b, __m256d c) {
+#if defined(__FMA__)
+            return _mm256_fnmadd_pd(b, c, a);
+#else
+            return _mm256_sub_pd(a, _mm256_mul_pd(b, c));
+#endif
+        };
+        const auto dmul_sub_mul = [](__m256d a, __m256d b, __m256d c, __m256d d) {
+#if defined(__FMA__)
+            return _mm256_fmsub_pd(a, b, _mm256_mul_pd(c, d));
+#else
+            return _mm256_sub_pd(_mm256_mul_pd(a, b), _mm256_mul_pd(c, d));
+#endif
+        };
+        __m256d xf[3], yf[3];   // sheared float vertices, in double
+        for (int i = 0; i < 3; ++i) {
+            const __m128 VX = _mm_sub_ps(_mm_set1_ps(src.c(i, X)), OX), VY = _mm_sub_ps(_mm_set1_ps(src.c(i, Y)), OY);
+            const __m128 VZ = _mm_sub_ps(_mm_set1_ps(src.c(i, Z)), OZ);
+            xf[i] = _mm256_cvtps_pd(fsub_mul(VX, SX, VZ));
+            yf[i] = _mm256_cvtps_pd(fsub_mul(VY, SY, VZ));
+        }
+        // double edge functions of the float vertices (exact products), the sign decision
+        const __m256d eu = _mm256_sub_pd(_mm256_mul_pd(xf[2], yf[1]), _mm256_mul_pd(yf[2], xf[1]));
+        const __m256d ev = _mm256_sub_pd(_mm256_mul_pd(xf[0], yf[2]), _mm256_mul_pd(yf[0], xf[2]));
+        const __m256d ew = _mm256_sub_pd(_mm256_mul_pd(xf[1], yf[0]), _mm256_mul_pd(yf[1], xf[0]));
+        const __m256d zero = _mm256_setzero_pd();
+        const __m256d pos = _mm256_and_pd(_mm256_and_pd(_mm256_cmp_pd(eu, zero, _CMP_GE_OQ), _mm256_cmp_pd(ev, zero, _CMP_GE_OQ)),
+                                          _mm256_cmp_pd(ew, zero, _CMP_GE_OQ));
+        const __m256d neg = _mm256_and_pd(_mm256_and_pd(_mm256_cmp_pd(eu, zero, _CMP_LE_OQ), _mm256_cmp_pd(ev, zero, _CMP_LE_OQ)),
+                                          _mm256_cmp_pd(ew, zero, _CMP_LE_OQ));
+        const __m256d det = _mm256_add_pd(_mm256_add_pd(eu, ev), ew);
+        const __m256d ok = _mm256_and_pd(_mm256_or_pd(pos, neg), _mm256_cmp_pd(det, zero, _CMP_NEQ_OQ));
+        if (_mm256_movemask_pd(ok) == 0) return 0;
+        // finish: the accurate evaluation in double (tri::watertight::finish)
+        const __m256d one = _mm256_set1_pd(1.0);
+        const __m256d sg = _mm256_blendv_pd(_mm256_set1_pd(-1.0), one, _mm256_cmp_pd(det, zero, _CMP_GT_OQ));
+        const __m256d DX = _mm256_cvtps_pd(OX), DY = _mm256_cvtps_pd(OY), DZ = _mm256_cvtps_pd(OZ);
+        const __m256d SXD = _mm256_load_pd(sxd + o), SYD = _mm256_load_pd(syd + o);
+        __m256d xd[3], yd[3], zd[3];
+        for (int i = 0; i < 3; ++i) {
+            zd[i] = _mm256_sub_pd(_mm256_set1_pd(double(src.c(i, Z))), DZ);
+            xd[i] = dsub_mul(_mm256_sub_pd(_mm256_set1_pd(double(src.c(i, X))), DX), SXD, zd[i]);
+            yd[i] = dsub_mul(_mm256_sub_pd(_mm256_set1_pd(double(src.c(i, Y))), DY), SYD, zd[i]);
+        }
+        __m256d w0 = _mm256_mul_pd(sg, dmul_sub_mul(xd[2], yd[1], yd[2], xd[1]));
+        __m256d w1 = _mm256_mul_pd(sg, dmul_sub_mul(xd[0], yd[2], yd[0], xd[2]));
+        __m256d w2 = _mm256_mul_pd(sg, dmul_sub_mul(xd[1], yd[0], yd[1], xd[0]));
+        __m256d sum = _mm256_add_pd(_mm256_add_pd(w0, w1), w2);
+        const __m256d absm = _mm256_castsi256_pd(_mm256_set1_epi64x(0x7fffffffffffffffLL));
+        const auto absmul = [&](__m256d a, __m256d b) { return _mm256_and_pd(_mm256_mul_pd(a, b), absm); };
+        __m256d nsum = _mm256_add_pd(absmul(xd[2], yd[1]), absmul(yd[2], xd[1]));
+        nsum = _mm256_add_pd(nsum, absmul(xd[0], yd[2]));
+        nsum = _mm256_add_pd(nsum, absmul(yd[0], xd[2]));
+        nsum = _mm256_add_pd(nsum, absmul(xd[1], yd[0]));
+        nsum = _mm256_add_pd(nsum, absmul(yd[1], xd[0]));
+        const __m256d noise = _mm256_mul_pd(_mm256_set1_pd(0x1p-48), nsum);
+        const __m256d good = _mm256_and_pd(
+            _mm256_and_pd(_mm256_cmp_pd(w0, zero, _CMP_GE_OQ), _mm256_cmp_pd(w1, zero, _CMP_GE_OQ)),
+            _mm256_and_pd(_mm256_cmp_pd(w2, zero, _CMP_GE_OQ), _mm256_cmp_pd(sum, noise, _CMP_GT_OQ)));
+        // where the accurate weights are not trusted: the decision's own
+        w0 = _mm256_blendv_pd(_mm256_mul_pd(sg, eu), w0, good);
+        w1 = _mm256_blendv_pd(_mm256_mul_pd(sg, ev), w1, good);
+        w2 = _mm256_blendv_pd(_mm256_mul_pd(sg, ew), w2, good);
+        sum = _mm256_blendv_pd(_mm256_mul_pd(sg, det), sum, good);
+        const __m256d inv = _mm256_div_pd(one, sum);
+#if defined(__FMA__)
+        const __m256d num = _mm256_fmadd_pd(w0, zd[0], _mm256_fmadd_pd(w1, zd[1], _mm256_mul_pd(w2, zd[2])));
+#else
+        const __m256d num = _mm256_add_pd(_mm256_mul_pd(w0, zd[0]), _mm256_add_pd(_mm256_mul_pd(w1, zd[1]), _mm256_mul_pd(w2, zd[2])));
+#endif
+        const __m128 tt = _mm256_cvtpd_ps(_mm256_mul_pd(_mm256_mul_pd(num, _mm256_load_pd(rcpd + o)), inv));
+        const __m128 in = _mm_and_ps(_mm_cmpge_ps(tt, _mm_loadu_ps(tmin + o)), _mm_cmple_ps(tt, _mm_loadu_ps(tmax + o)));
+        _mm_store_ps(t4, _mm_add_ps(tt, _mm_setzero_ps()));   // -0 -> +0
+        _mm_store_ps(u4, _mm256_cvtpd_ps(_mm256_mul_pd(w1, inv)));
+        _mm_store_ps(v4, _mm256_cvtpd_ps(_mm256_mul_pd(w2, inv)));
+        return unsigned(_mm_movemask_ps(in)) & unsigned(_mm256_movemask_pd(ok));
+    }
+#endif
 
     /// A triangle (user index prim) against the rays of m. `src.c(vertex, axis)` reads a coordinate,
     /// `src.get()` the whole triangle (block lanes are read in place; the triangle is rebuilt only for
