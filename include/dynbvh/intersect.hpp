@@ -340,7 +340,10 @@ namespace tri {
 /// or a vertex. Front and back faces both hit (so the paper's kx/ky swap for dir[kz] < 0, which only
 /// keeps the winding for culling, is left out); edge-on triangles (U + V + W == 0) miss. t, u, v of a
 /// hit come from a second, accurate evaluation in double (see the code); a hit at t = -0 is reported
-/// as +0. Output: t, and (u, v) with p = (1-u-v) p0 + u p1 + v p2 (the Hit convention).
+/// as +0. The shear and that evaluation spell out their fused operations (detail::sub_mul, mul_sub_mul,
+/// dot3: fused where the target has FMA), so their bits do not depend on the compiler's contraction
+/// choice and the packet traversal's SIMD copy of the test (packet.hpp) gives the same ones.
+/// Output: t, and (u, v) with p = (1-u-v) p0 + u p1 + v p2 (the Hit convention).
 /// Limit: vertex - origin is rounded to float before the signs are taken, so a closed solid thinner than
 /// about |origin - object| / 3e7 can be missed as a whole (watertightness holds between its triangles,
 /// but the rounded solid may have no area along the ray); see the file comment for the guaranteed side.

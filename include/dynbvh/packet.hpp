@@ -37,8 +37,10 @@
 /// stack entries are skipped once none of their rays can find a closer hit there.
 /// Leaves: block leaves (prim::blocks) and index leaves test each triangle against all rays of the
 /// packet at once: tri::watertight with the SIMD float filter of the block test (detail::WatertightFilter,
-/// the same forward error bound per (ray, triangle) pair) and the exact scalar test on each kept ray with
-/// that ray's tmax (a block's filters all run before its exact tests, in the block's order);
+/// the same forward error bound per (ray, triangle) pair) and the exact test on each kept ray with that
+/// ray's tmax (a block's filters all run before its exact tests, in the block's order; with AVX, four
+/// kept rays at once where three or four of four neighbouring lanes are kept: the scalar test's
+/// operations in SIMD, the same bits);
 /// tri::moller_trumbore with the scalar test's operations lane by lane (bit for bit as long as neither
 /// side is FMA-contracted, as for the block test).
 /// SIMD width: packets of 16 take one AVX-512 step per operation where the compiler targets AVX-512F
@@ -625,13 +627,14 @@ struct PacketTraversal {
     DYNBVH_ALWAYS_INLINE void confirm(const Src& src, std::uint32_t prim, std::uint32_t cand) noexcept {
         if (cand == 0) return;
 #if defined(DYNBVH_AVX)
-        // four lanes at a time where two or more of them are candidates (a large triangle under a
-        // packet), a lone candidate alone
+        // four lanes at a time where at least three of them are candidates (a large triangle under a
+        // packet), the others one by one
         std::uint32_t lone = 0;
-        for (int o = 0; o < N; o += 4) {
-            const std::uint32_t q = cand >> o & 0xfu;
-            if (q == 0) continue;
-            if ((q & (q - 1)) == 0) {
+        for (std::uint32_t rest = std::popcount(cand) >= 3 ? cand : 0u; rest != 0;) {
+            const int o = std::countr_zero(rest) & ~3;
+            const std::uint32_t q = rest >> o & 0xfu;
+            rest &= ~(std::uint32_t(0xf) << o);
+            if (std::popcount(q) < 3) {
                 lone |= q << o;
                 continue;
             }
@@ -643,8 +646,10 @@ struct PacketTraversal {
                 take(k, t4[j], u4[j], v4[j], prim);
             }
         }
-        cand = lone;
-        if (cand == 0) return;
+        if (std::popcount(cand) >= 3) {
+            cand = lone;
+            if (cand == 0) return;
+        }
 #endif
         const Triangle<float> tr = src.get();
         for (std::uint32_t c = cand; c != 0; c &= c - 1) {
