@@ -853,6 +853,27 @@ struct PacketTraversal {
         } else {
             const I* ids = bvh.prim_ids.data();
             const Triangle<float>* lt = WB::precomputed ? bvh.leaf_triangles.data() : tris.data();
+            if constexpr (std::is_same_v<Tri, tri::watertight>) {
+                // as for blocks: up to eight filters, then their exact tests in the leaf's order
+                constexpr std::size_t chunk = 8;
+                const std::size_t end = std::size_t(first) + count;
+                for (std::size_t s0 = first; s0 < end; s0 += chunk) {
+                    if constexpr (AnyHit)
+                        if ((m &= alive) == 0) return;
+                    const std::size_t n = std::min(chunk, end - s0);
+                    std::uint32_t cand[chunk];
+                    for (std::size_t j = 0; j < n; ++j) {
+                        const std::size_t s = s0 + j;
+                        cand[j] = filter(WholeTriangle{WB::precomputed ? lt[s] : lt[ids[s]]}, m);
+                    }
+                    for (std::size_t j = 0; j < n; ++j) {
+                        const std::size_t s = s0 + j;
+                        if constexpr (AnyHit) cand[j] &= alive;
+                        confirm(WholeTriangle{WB::precomputed ? lt[s] : lt[ids[s]]}, static_cast<std::uint32_t>(ids[s]), cand[j]);
+                    }
+                }
+                return;
+            }
             for (std::size_t s = first; s < std::size_t(first) + count; ++s) {
                 if constexpr (AnyHit) {
                     m &= alive;
