@@ -23,8 +23,8 @@
 ///
 /// Traversal (float trees, box::robust, with SSE; detail::PacketTraversal): the packet's set-up is SIMD
 /// across its rays (validity, reciprocal directions, octants, dominant axes); the triangle test's
-/// shear waits for a group's first triangle, and its per-ray set-up for a ray's first candidate. The active rays are grouped by direction
-/// octant (and, for tri::watertight, dominant axis); a group of at least `PacketConfig::min_rays` rays
+/// shear waits for a group's first leaf, and its per-ray set-up for a ray's first candidate. The
+/// active rays are grouped by direction octant (and, for tri::watertight, dominant axis); a group of at least `PacketConfig::min_rays` rays
 /// is traced as one packet, the others ray by ray. A coherent group (no direction component exactly 0)
 /// tests the W child boxes of an inner node for all its rays at once by interval arithmetic over the
 /// group's origins and reciprocal directions (one SIMD test per node, conservative: every box any of its
@@ -221,6 +221,38 @@ DYNBVH_ALWAYS_INLINE __m128 select(__m128 m, __m128 a, __m128 b) noexcept { retu
 #if defined(DYNBVH_AVX)
 DYNBVH_ALWAYS_INLINE __m256 select(__m256 m, __m256 a, __m256 b) noexcept { return _mm256_blendv_ps(b, a, m); }
 #endif
+#if defined(DYNBVH_AVX)
+/// The lane forms of intersect.hpp's detail::sub_mul, mul_sub_mul and dot3 (the same roundings, fused
+/// where the target has FMA), for the packet traversal's four-ray exact test.
+DYNBVH_ALWAYS_INLINE __m128 sub_mul(__m128 a, __m128 b, __m128 c) noexcept {
+#if defined(__FMA__)
+    return _mm_fnmadd_ps(b, c, a);
+#else
+    return _mm_sub_ps(a, _mm_mul_ps(b, c));
+#endif
+}
+DYNBVH_ALWAYS_INLINE __m256d sub_mul(__m256d a, __m256d b, __m256d c) noexcept {
+#if defined(__FMA__)
+    return _mm256_fnmadd_pd(b, c, a);
+#else
+    return _mm256_sub_pd(a, _mm256_mul_pd(b, c));
+#endif
+}
+DYNBVH_ALWAYS_INLINE __m256d mul_sub_mul(__m256d a, __m256d b, __m256d c, __m256d d) noexcept {
+#if defined(__FMA__)
+    return _mm256_fmsub_pd(a, b, _mm256_mul_pd(c, d));
+#else
+    return _mm256_sub_pd(_mm256_mul_pd(a, b), _mm256_mul_pd(c, d));
+#endif
+}
+DYNBVH_ALWAYS_INLINE __m256d dot3(__m256d a, __m256d b, __m256d c, __m256d d, __m256d e, __m256d f) noexcept {
+#if defined(__FMA__)
+    return _mm256_fmadd_pd(a, b, _mm256_fmadd_pd(c, d, _mm256_mul_pd(e, f)));
+#else
+    return _mm256_add_pd(_mm256_mul_pd(a, b), _mm256_add_pd(_mm256_mul_pd(c, d), _mm256_mul_pd(e, f)));
+#endif
+}
+#endif
 #if defined(DYNBVH_AVX512)
 DYNBVH_ALWAYS_INLINE __m512 select(__mmask16 m, __m512 a, __m512 b) noexcept { return _mm512_mask_blend_ps(m, b, a); }
 /// Eight lanes of x, the lower (H = 0) or upper (H = 1) ones. (The zero-masked form: in GCC 12 the
@@ -387,8 +419,8 @@ struct PacketTraversal {
         return g;
     }
 
-    /// Prepares the group's lanes (tmax, best, hit; for tri::watertight the axes, the shear later: make_shear) and the interval
-    /// bounds (`coherent` when no reciprocal direction component of the group is infinite). Lanes
+    /// Prepares the group's lanes (tmax, best, hit; for tri::watertight the axes, the shear at the first
+    /// leaf: make_shear) and the interval bounds (`coherent` when no reciprocal direction component of the group is infinite). Lanes
     /// outside the group get tmax -inf: they never hit and do not widen the group's tmax bound.
     void begin_group(std::uint32_t group) noexcept {
         constexpr float inf = std::numeric_limits<float>::infinity();
@@ -442,7 +474,7 @@ struct PacketTraversal {
 
     /// The group's watertight shear (tri::watertight::prepared's, the same operations): rcp = 1.0 /
     /// double(dir[kz]), sx = float(double(dir[kx]) * rcp), for every lane (only the group's are used).
-    /// Made at the group's first triangle test: most packets of a camera's background reach no leaf.
+    /// Made at the group's first leaf (test_triangles): most packets of a camera's background reach none.
     DYNBVH_NOINLINE void make_shear() noexcept {
         const float* d[3] = {pk.dir_x, pk.dir_y, pk.dir_z};
 #if defined(DYNBVH_AVX)
@@ -602,7 +634,6 @@ struct PacketTraversal {
     template <class Src>
     DYNBVH_ALWAYS_INLINE std::uint32_t filter(const Src& src, std::uint32_t m) noexcept {
         using F = WatertightFilter<V>;
-        if (!sheared) [[unlikely]] make_shear();
         const std::size_t X = std::size_t(kx), Y = std::size_t(ky), Z = std::size_t(kz);
         const R ax = V::set1(src.c(0, X)), ay = V::set1(src.c(0, Y)), az = V::set1(src.c(0, Z));
         const R bx = V::set1(src.c(1, X)), by = V::set1(src.c(1, Y)), bz = V::set1(src.c(1, Z));
@@ -629,24 +660,24 @@ struct PacketTraversal {
 #if defined(DYNBVH_AVX)
         // four lanes at a time where at least three of them are candidates (a large triangle under a
         // packet), the others one by one
-        std::uint32_t lone = 0;
-        for (std::uint32_t rest = std::popcount(cand) >= 3 ? cand : 0u; rest != 0;) {
-            const int o = std::countr_zero(rest) & ~3;
-            const std::uint32_t q = rest >> o & 0xfu;
-            rest &= ~(std::uint32_t(0xf) << o);
-            if (std::popcount(q) < 3) {
-                lone |= q << o;
-                continue;
-            }
-            alignas(16) float t4[4], u4[4], v4[4];
-            for (std::uint32_t c = exact4(src, o, t4, u4, v4) & q; c != 0; c &= c - 1) {
-                const int j = std::countr_zero(c), k = o + j;
-                if constexpr (!AnyHit)
-                    if (!replaces_hit(t4[j], tmax[k], prim, best[k])) continue;
-                take(k, t4[j], u4[j], v4[j], prim);
-            }
-        }
         if (std::popcount(cand) >= 3) {
+            std::uint32_t lone = 0;
+            for (std::uint32_t rest = cand; rest != 0;) {
+                const int o = std::countr_zero(rest) & ~3;
+                const std::uint32_t q = rest >> o & 0xfu;
+                rest &= ~(std::uint32_t(0xf) << o);
+                if (std::popcount(q) < 3) {
+                    lone |= q << o;
+                    continue;
+                }
+                alignas(16) float t4[4], u4[4], v4[4];
+                for (std::uint32_t c = exact4(src, o, t4, u4, v4) & q; c != 0; c &= c - 1) {
+                    const int j = std::countr_zero(c), k = o + j;
+                    if constexpr (!AnyHit)
+                        if (!replaces_hit(t4[j], tmax[k], prim, best[k])) continue;
+                    take(k, t4[j], u4[j], v4[j], prim);
+                }
+            }
             cand = lone;
             if (cand == 0) return;
         }
@@ -673,33 +704,12 @@ struct PacketTraversal {
         const __m128 OX = _mm_loadu_ps(okx + o), OY = _mm_loadu_ps(oky + o), OZ = _mm_loadu_ps(okz + o);
         const __m128 SX = _mm_loadu_ps(sx + o), SY = _mm_loadu_ps(sy + o);
         // float: vertex - origin, sheared (tri::watertight's test_axes)
-        const auto fsub_mul = [](__m128 a, __m128 b, __m128 c) {
-#if defined(__FMA__)
-            return _mm_fnmadd_ps(b, c, a);
-#else
-            return _mm_sub_ps(a, _mm_mul_ps(b, c));
-#endif
-        };
-        const auto dsub_mul = [](__m256d a, __m256d b, __m256d c) {
-#if defined(__FMA__)
-            return _mm256_fnmadd_pd(b, c, a);
-#else
-            return _mm256_sub_pd(a, _mm256_mul_pd(b, c));
-#endif
-        };
-        const auto dmul_sub_mul = [](__m256d a, __m256d b, __m256d c, __m256d d) {
-#if defined(__FMA__)
-            return _mm256_fmsub_pd(a, b, _mm256_mul_pd(c, d));
-#else
-            return _mm256_sub_pd(_mm256_mul_pd(a, b), _mm256_mul_pd(c, d));
-#endif
-        };
         __m256d xf[3], yf[3];   // sheared float vertices, in double
         for (int i = 0; i < 3; ++i) {
             const __m128 VX = _mm_sub_ps(_mm_set1_ps(src.c(i, X)), OX), VY = _mm_sub_ps(_mm_set1_ps(src.c(i, Y)), OY);
             const __m128 VZ = _mm_sub_ps(_mm_set1_ps(src.c(i, Z)), OZ);
-            xf[i] = _mm256_cvtps_pd(fsub_mul(VX, SX, VZ));
-            yf[i] = _mm256_cvtps_pd(fsub_mul(VY, SY, VZ));
+            xf[i] = _mm256_cvtps_pd(sub_mul(VX, SX, VZ));
+            yf[i] = _mm256_cvtps_pd(sub_mul(VY, SY, VZ));
         }
         // double edge functions of the float vertices (exact products), the sign decision
         const __m256d eu = _mm256_sub_pd(_mm256_mul_pd(xf[2], yf[1]), _mm256_mul_pd(yf[2], xf[1]));
@@ -721,12 +731,12 @@ struct PacketTraversal {
         __m256d xd[3], yd[3], zd[3];
         for (int i = 0; i < 3; ++i) {
             zd[i] = _mm256_sub_pd(_mm256_set1_pd(double(src.c(i, Z))), DZ);
-            xd[i] = dsub_mul(_mm256_sub_pd(_mm256_set1_pd(double(src.c(i, X))), DX), SXD, zd[i]);
-            yd[i] = dsub_mul(_mm256_sub_pd(_mm256_set1_pd(double(src.c(i, Y))), DY), SYD, zd[i]);
+            xd[i] = sub_mul(_mm256_sub_pd(_mm256_set1_pd(double(src.c(i, X))), DX), SXD, zd[i]);
+            yd[i] = sub_mul(_mm256_sub_pd(_mm256_set1_pd(double(src.c(i, Y))), DY), SYD, zd[i]);
         }
-        __m256d w0 = _mm256_mul_pd(sg, dmul_sub_mul(xd[2], yd[1], yd[2], xd[1]));
-        __m256d w1 = _mm256_mul_pd(sg, dmul_sub_mul(xd[0], yd[2], yd[0], xd[2]));
-        __m256d w2 = _mm256_mul_pd(sg, dmul_sub_mul(xd[1], yd[0], yd[1], xd[0]));
+        __m256d w0 = _mm256_mul_pd(sg, mul_sub_mul(xd[2], yd[1], yd[2], xd[1]));
+        __m256d w1 = _mm256_mul_pd(sg, mul_sub_mul(xd[0], yd[2], yd[0], xd[2]));
+        __m256d w2 = _mm256_mul_pd(sg, mul_sub_mul(xd[1], yd[0], yd[1], xd[0]));
         __m256d sum = _mm256_add_pd(_mm256_add_pd(w0, w1), w2);
         const __m256d absm = _mm256_castsi256_pd(_mm256_set1_epi64x(0x7fffffffffffffffLL));
         const auto absmul = [&](__m256d a, __m256d b) { return _mm256_and_pd(_mm256_mul_pd(a, b), absm); };
@@ -745,11 +755,7 @@ struct PacketTraversal {
         w2 = _mm256_blendv_pd(_mm256_mul_pd(sg, ew), w2, good);
         sum = _mm256_blendv_pd(_mm256_mul_pd(sg, det), sum, good);
         const __m256d inv = _mm256_div_pd(one, sum);
-#if defined(__FMA__)
-        const __m256d num = _mm256_fmadd_pd(w0, zd[0], _mm256_fmadd_pd(w1, zd[1], _mm256_mul_pd(w2, zd[2])));
-#else
-        const __m256d num = _mm256_add_pd(_mm256_mul_pd(w0, zd[0]), _mm256_add_pd(_mm256_mul_pd(w1, zd[1]), _mm256_mul_pd(w2, zd[2])));
-#endif
+        const __m256d num = dot3(w0, zd[0], w1, zd[1], w2, zd[2]);
         const __m128 tt = _mm256_cvtpd_ps(_mm256_mul_pd(_mm256_mul_pd(num, _mm256_load_pd(rcpd + o)), inv));
         const __m128 in = _mm_and_ps(_mm_cmpge_ps(tt, _mm_loadu_ps(tmin + o)), _mm_cmple_ps(tt, _mm_loadu_ps(tmax + o)));
         _mm_store_ps(t4, _mm_add_ps(tt, _mm_setzero_ps()));   // -0 -> +0
@@ -759,14 +765,13 @@ struct PacketTraversal {
     }
 #endif
 
-    /// A triangle (user index prim) against the rays of m. `src.c(vertex, axis)` reads a coordinate,
+    /// A triangle (user index prim) against the rays of m, for the policies other than tri::watertight
+    /// (test_triangles). `src.c(vertex, axis)` reads a coordinate,
     /// `src.get()` the whole triangle (block lanes are read in place; the triangle is rebuilt only for
     /// the scalar confirmations).
     template <class Src>
     DYNBVH_ALWAYS_INLINE void test_triangle(const Src& src, std::uint32_t prim, std::uint32_t m) noexcept {
-        if constexpr (std::is_same_v<Tri, tri::watertight>) {
-            confirm(src, prim, filter(src, m));
-        } else if constexpr (std::is_same_v<Tri, tri::moller_trumbore>) {
+        if constexpr (std::is_same_v<Tri, tri::moller_trumbore>) {
             // the scalar test's operations lane by lane (vec.hpp's cross and dot, one division)
             const float p0x_ = src.c(0, 0), p0y_ = src.c(0, 1), p0z_ = src.c(0, 2);
             const float e1x_ = src.c(1, 0) - p0x_, e1y_ = src.c(1, 1) - p0y_, e1z_ = src.c(1, 2) - p0z_;
@@ -821,7 +826,34 @@ struct PacketTraversal {
         }
     }
 
-    /// Leaf slot (first, count) against the rays of m.
+    /// Up to eight triangles of a leaf, src(j) and user index prim(j) for j < n, against the rays of m in
+    /// the leaf's order. tri::watertight: every filter first (independent, so they overlap), then the
+    /// exact tests (the filter does not read tmax: the same answers). False when an any-hit query has
+    /// no ray left.
+    template <class SrcAt, class PrimAt>
+    DYNBVH_ALWAYS_INLINE bool test_triangles(int n, const SrcAt& src, const PrimAt& prim, std::uint32_t& m) noexcept {
+        if constexpr (std::is_same_v<Tri, tri::watertight>) {
+            if constexpr (AnyHit)
+                if ((m &= alive) == 0) return false;
+            if (!sheared) [[unlikely]] make_shear();
+            std::uint32_t cand[8];
+            for (int j = 0; j < n; ++j) cand[j] = filter(src(j), m);
+            for (int j = 0; j < n; ++j) {
+                if constexpr (AnyHit) cand[j] &= alive;
+                confirm(src(j), prim(j), cand[j]);
+            }
+        } else {
+            for (int j = 0; j < n; ++j) {
+                if constexpr (AnyHit)
+                    if ((m &= alive) == 0) return false;
+                test_triangle(src(j), prim(j), m);
+            }
+        }
+        return true;
+    }
+
+    /// Leaf slot (first, count) against the rays of m: block by block, or eight index-leaf triangles at
+    /// a time (test_triangles).
     DYNBVH_ALWAYS_INLINE void test_leaf_packet(I first, I count, std::uint32_t m) noexcept {
         if constexpr (WB::block_lanes > 0) {
             constexpr int BL = WB::block_lanes;
@@ -829,57 +861,20 @@ struct PacketTraversal {
             const std::size_t end = std::size_t(first) + blocks_for<BL>(count);
             for (std::size_t i = first; i < end; ++i) {
                 const auto& b = blocks[i];
-                if constexpr (std::is_same_v<Tri, tri::watertight>) {
-                    // every triangle's filter first (independent, so they overlap), then the exact tests
-                    // in the block's order (the filter does not depend on tmax: the same answers)
-                    if constexpr (AnyHit)
-                        if ((m &= alive) == 0) return;
-                    std::uint32_t cand[std::size_t(BL)];
-                    for (int j = 0; j < int(b.count); ++j) cand[j] = filter(BlockLane<BL>{b, j}, m);
-                    for (int j = 0; j < int(b.count); ++j) {
-                        if constexpr (AnyHit) cand[j] &= alive;
-                        confirm(BlockLane<BL>{b, j}, b.prim[j], cand[j]);
-                    }
-                    continue;
-                }
-                for (int j = 0; j < int(b.count); ++j) {
-                    if constexpr (AnyHit) {
-                        m &= alive;
-                        if (m == 0) return;
-                    }
-                    test_triangle(BlockLane<BL>{b, j}, b.prim[j], m);
-                }
+                if (!test_triangles(int(b.count), [&b](int j) { return BlockLane<BL>{b, j}; },
+                                    [&b](int j) { return b.prim[j]; }, m))
+                    return;
             }
         } else {
             const I* ids = bvh.prim_ids.data();
             const Triangle<float>* lt = WB::precomputed ? bvh.leaf_triangles.data() : tris.data();
-            if constexpr (std::is_same_v<Tri, tri::watertight>) {
-                // as for blocks: up to eight filters, then their exact tests in the leaf's order
-                constexpr std::size_t chunk = 8;
-                const std::size_t end = std::size_t(first) + count;
-                for (std::size_t s0 = first; s0 < end; s0 += chunk) {
-                    if constexpr (AnyHit)
-                        if ((m &= alive) == 0) return;
-                    const std::size_t n = std::min(chunk, end - s0);
-                    std::uint32_t cand[chunk];
-                    for (std::size_t j = 0; j < n; ++j) {
-                        const std::size_t s = s0 + j;
-                        cand[j] = filter(WholeTriangle{WB::precomputed ? lt[s] : lt[ids[s]]}, m);
-                    }
-                    for (std::size_t j = 0; j < n; ++j) {
-                        const std::size_t s = s0 + j;
-                        if constexpr (AnyHit) cand[j] &= alive;
-                        confirm(WholeTriangle{WB::precomputed ? lt[s] : lt[ids[s]]}, static_cast<std::uint32_t>(ids[s]), cand[j]);
-                    }
-                }
-                return;
-            }
-            for (std::size_t s = first; s < std::size_t(first) + count; ++s) {
-                if constexpr (AnyHit) {
-                    m &= alive;
-                    if (m == 0) return;
-                }
-                test_triangle(WholeTriangle{WB::precomputed ? lt[s] : lt[ids[s]]}, static_cast<std::uint32_t>(ids[s]), m);
+            const std::size_t end = std::size_t(first) + count;
+            for (std::size_t s0 = first; s0 < end; s0 += 8) {
+                const auto at = [&](int j) { return s0 + std::size_t(j); };
+                if (!test_triangles(int(std::min<std::size_t>(8, end - s0)),
+                                    [&](int j) { return WholeTriangle{WB::precomputed ? lt[at(j)] : lt[ids[at(j)]]}; },
+                                    [&](int j) { return static_cast<std::uint32_t>(ids[at(j)]); }, m))
+                    return;
             }
         }
     }
