@@ -11,7 +11,8 @@
 // the Stanford bunny and dragon from DYNBVH_DATA_DIR when present (a camera that frames the mesh).
 // "mwide8 blk": morton_wide (the 8-wide tree straight from the sorted Morton codes) with block leaves.
 // Packets: 4x2 pixels (8 rays) or 4x4 (16) inside each 16x16 tile, coherent context for Embree; ours
-// ("... blk x8", "x16": packet.hpp on the block trees, trace::robust) beside them, checked to give the
+// ("... blk x8", "x16", "x32" = 8x4 pixels as two 4x4 halves: packet.hpp on the block trees, and on
+// the default-leaf PLOC tree the study traces, "ploc wide8 x32"; trace::robust) beside them, checked to give the
 // single-ray column's hits ray for ray ("packets!=single" must be 0).
 // Trees: LBVH, PLOC (r = 5) and binned SAH, prim::indexed, each traced binary (traverse.hpp) and
 // converted to 4-wide and 8-wide ("wide8") nodes (wide.hpp); trace::robust unless the row says "fast";
@@ -106,7 +107,7 @@ struct Method {
     std::vector<double> ms[2];   // per thread-count slot
 };
 
-/// Packets of N = 8 (4x2 pixels) or 16 (4x4) rays over each tile (study::for_each_packet, the study's
+/// Packets of N = 8 (4x2 pixels), 16 (4x4) or 32 (8x4) rays over each tile (study::for_each_packet, the study's
 /// tiling): `isect(rays, valid, prims)` traces the packet's rays (valid[k] == 0 past the tile's edge)
 /// and writes their hit prims.
 template <int N, class Isect>
@@ -117,7 +118,7 @@ void trace_packets(const study::RayGen& gen, int threads, std::vector<std::uint3
             std::uint32_t prims[N];
             isect(rays, valid, prims);
             for (int j = 0; j < N; ++j)
-                if (valid[j]) out[std::size_t(y0 + j / 4) * w + std::size_t(x0 + j % 4)] = prims[j];
+                if (valid[j]) out[std::size_t(y0 + study::packet_dy(j)) * w + std::size_t(x0 + study::packet_dx(j))] = prims[j];
         });
     });
 }
@@ -276,6 +277,7 @@ int main(int argc, char** argv) {
         };
         using P8 = std::integral_constant<int, 8>;
         using P16 = std::integral_constant<int, 16>;
+        using P32 = std::integral_constant<int, 32>;
         add_packets("embree-low x8", embree_packets(elow, P8{}), P8{});
         add_packets("embree-low x16", embree_packets(elow, P16{}), P16{});
         add_packets("embree-medium x8", embree_packets(emed, P8{}), P8{});
@@ -301,6 +303,9 @@ int main(int argc, char** argv) {
         add_packets("ploc wide8 blk x16", our_packets(pbk, P16{}), P16{});
         add_packets("sah wide8 blk x8", our_packets(sbk, P8{}), P8{});
         add_packets("sah wide8 blk x16", our_packets(sbk, P16{}), P16{});
+        add_packets("sah wide8 blk x32", our_packets(sbk, P32{}), P32{});
+        add_packets("ploc wide8 blk x32", our_packets(pbk, P32{}), P32{});
+        add_packets("ploc wide8 x32", our_packets(pw8, P32{}), P32{});
         add_packets("kbvh wide8 blk x16", our_packets(kbk, P16{}), P16{});
         add_packets("mwide8 blk x16", our_packets(mwk, P16{}), P16{});
         const std::size_t first_ours = methods.size();   // methods[0], [1]: Embree LOW / MEDIUM rtcIntersect1

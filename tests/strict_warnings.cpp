@@ -131,6 +131,9 @@ double blocks(std::span<const Trianglef> tris, const Exec& ex) {
     sum += double(intersect<trace::policy<box::robust, tri::moller_trumbore>>(b8, tris, p).hit_mask());
     RayPacket<float, 8> q;
     sum += double(occluded<trace::policy<box::robust, tri::moller_trumbore>>(b84, tris, q, 0x3u));
+    RayPacket<float, 32> r32;
+    r32.set(31, ray);
+    sum += double(intersect(b8, tris, r32).t[31]) + double(occluded(b8, tris, r32, 0x80000001u));
     // packed straight from a wide tree, and refitted in place
     auto mb = make_wide_blocks(morton_wide::build<8>(tris, {}, ex), tris, ex);
     auto md = morton_wide::build_blocks(tris, {}, ex);   // the same tree in one step

@@ -211,7 +211,8 @@ template <class Scene>
 void check_packets(const Scene& scene, const std::vector<Rayf>& rays, const std::string& what) {
     std::vector<Rayf> all = tile_rays(scene, sanitizer_scaled(std::size_t(12)), 3);
     all.insert(all.end(), rays.begin(), rays.end());
-    const std::size_t bad = packet_mismatches<16>(scene, all, what) + packet_mismatches<8>(scene, all, what);
+    const std::size_t bad = packet_mismatches<16>(scene, all, what) + packet_mismatches<8>(scene, all, what) +
+                              packet_mismatches<32>(scene, all, what);
     CHECK_MESSAGE(bad == 0, what, ": ", bad, " packet lanes differ from the single-ray query");
 }
 

@@ -82,7 +82,7 @@ void check_packets(const WT& tree, std::span<const Trianglef> tris, std::span<co
     }
 }
 
-/// Every mask kind, N = 8 and 16 (16 only when !Both), several min_rays, interval traversal on and off, for Policy.
+/// Every mask kind, N = 8, 16 and 32 (16 only when !Both), several min_rays, interval traversal on and off, for Policy.
 template <class Policy, bool Both = true, class WT>
 void check_all_masks(const WT& tree, std::span<const Trianglef> tris, std::span<const Rayf> rays, std::uint64_t seed, Tally& t) {
     Rng rng(seed);
@@ -98,6 +98,9 @@ void check_all_masks(const WT& tree, std::span<const Trianglef> tris, std::span<
             check_packets<Policy, 8>(tree, tris, rays, [](std::size_t) { return ~std::uint32_t(0); }, cfg, t);
             check_packets<Policy, 8>(tree, tris, rays, [&](std::size_t) { return std::uint32_t(rng.next()); }, cfg, t);
             check_packets<Policy, 8>(tree, tris, rays, [](std::size_t) { return 0u; }, cfg, t);
+            // 32 (two 16-lane halves): all lanes, and a random mask (lanes 16-31 too)
+            check_packets<Policy, 32>(tree, tris, rays, [](std::size_t) { return ~std::uint32_t(0); }, cfg, t);
+            check_packets<Policy, 32>(tree, tris, rays, [&](std::size_t) { return std::uint32_t(rng.next()); }, cfg, t);
         }
     }
 }
@@ -156,6 +159,7 @@ std::vector<Rayf> all_rays(std::span<const Trianglef> tris, std::size_t per_kind
     const Vec3f eye = c + Vec3f{0.3f, 0.2f, 1.0f} * (1.5f * size);
     for (const Rayf& r : camera_tiles(eye, c, 0.45f, 32, 16, 4, 4)) rays.push_back(r);
     for (const Rayf& r : camera_tiles(eye, c, 0.45f, 32, 16, 4, 2)) rays.push_back(r);
+    for (const Rayf& r : camera_tiles(eye, c, 0.45f, 32, 16, 8, 4)) rays.push_back(r);
     return rays;
 }
 

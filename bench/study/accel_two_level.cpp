@@ -77,10 +77,10 @@ public:
 
     void trace(std::span<const Trianglef>, const RayGen& gen, std::span<std::uint32_t> out) override {
         const Scene& sc = *scene_;
-        if (spec_.packets) {   // packets of 16 through both levels (TwoLevel::intersect of a RayPacket)
-            trace_tiles_ray_packets(backend_, gen, out, [&](const RayPacket<float, 16>& p, std::uint32_t active, std::uint32_t* prims) {
-                const InstanceHitPacket<float, 16> h = sc.intersect(p, active);
-                for (int k = 0; k < 16; ++k) prims[k] = frame_prim(h.hit(k)).prim;
+        if (spec_.packets) {   // packets of 32 (8x4 pixels) through both levels (TwoLevel::intersect of a RayPacket)
+            trace_tiles_ray_packets<32>(backend_, gen, out, [&](const RayPacket<float, 32>& p, std::uint32_t active, std::uint32_t* prims) {
+                const InstanceHitPacket<float, 32> h = sc.intersect(p, active);
+                for (int k = 0; k < 32; ++k) prims[k] = frame_prim(h.hit(k)).prim;
             });
             return;
         }

@@ -42,19 +42,25 @@ private:
     Vec3f eye_, corner_, du_, dv_;
 };
 
-/// The rays of tile `t` in packets of N = 8 (4x2 pixels) or 16 (4x4): f(rays, valid, x0, y0) once per
-/// packet, lane j being pixel (x0 + j % 4, y0 + j / 4); a lane past the tile's edge has valid[j] == 0
-/// and a copy of the packet's first ray. The one packet tiling of the study and dynbvh-bench-trace.
+/// Pixel offset of lane j in a packet of N rays: 8 = 4x2 pixels, 16 = 4x4, 32 = 8x4 as two 4x4
+/// halves (lanes 0-15 left, 16-31 right, so each 16-lane SIMD step is a square).
+constexpr int packet_dx(int j) noexcept { return j % 4 + 4 * (j / 16); }
+constexpr int packet_dy(int j) noexcept { return (j / 4) % 4; }
+
+/// The rays of tile `t` in packets of N = 8, 16 or 32 (packet_dx, packet_dy): f(rays, valid, x0, y0)
+/// once per packet, lane j being pixel (x0 + packet_dx(j), y0 + packet_dy(j)); a lane past the tile's
+/// edge has valid[j] == 0 and a copy of the packet's first ray. The one packet tiling of the study and
+/// dynbvh-bench-trace.
 template <int N, class F>
 void for_each_packet(const RayGen& gen, const Tile& t, F&& f) {
-    static_assert(N == 8 || N == 16, "packets of 8 (4x2) or 16 (4x4) rays");
-    constexpr int pw = 4, ph = N / 4;
+    static_assert(N == 8 || N == 16 || N == 32, "packets of 8 (4x2), 16 (4x4) or 32 (8x4) rays");
+    constexpr int pw = N == 32 ? 8 : 4, ph = N == 8 ? 2 : 4;
     Rayf rays[N];
     int valid[N];
     for (int y0 = t.y0; y0 < t.y1; y0 += ph)
         for (int x0 = t.x0; x0 < t.x1; x0 += pw) {
             for (int j = 0; j < N; ++j) {
-                const int x = x0 + j % pw, y = y0 + j / pw;
+                const int x = x0 + packet_dx(j), y = y0 + packet_dy(j);
                 valid[j] = x < t.x1 && y < t.y1;
                 rays[j] = gen.ray(valid[j] ? x : x0, valid[j] ? y : y0);
             }

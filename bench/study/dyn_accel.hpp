@@ -36,7 +36,7 @@ void trace_tiles(const Backend& backend, const RayGen& gen, std::span<std::uint3
     });
 }
 
-/// The same loop with the rays of each tile in packets of N = 16 (4x4 pixels) or 8 (4x2):
+/// The same loop with the rays of each tile in packets of N = 32 (8x4 pixels), 16 (4x4) or 8 (4x2):
 /// `isect(rays, valid, prims)` traces a packet (valid[k] == 0 for a lane past the tile's edge, whose
 /// ray is a copy of lane 0's) and writes the hit triangles of its valid lanes.
 template <int N, class Intersect>
@@ -47,23 +47,23 @@ void trace_tiles_packets(const Backend& backend, const RayGen& gen, std::span<st
             std::uint32_t prims[N];
             isect(rays, valid, prims);
             for (int j = 0; j < N; ++j)
-                if (valid[j]) out[std::size_t(y0 + j / 4) * w + std::size_t(x0 + j % 4)] = prims[j];
+                if (valid[j]) out[std::size_t(y0 + packet_dy(j)) * w + std::size_t(x0 + packet_dx(j))] = prims[j];
         });
     });
 }
 
-/// trace_tiles_packets<16> with each packet as a RayPacket: `isect(packet, active, prims)` (active: the
-/// mask of the lanes inside the tile) writes the hit triangles of the active lanes.
-template <class Intersect>
+/// trace_tiles_packets<N> with each packet as a RayPacket<float, N>: `isect(packet, active, prims)`
+/// (active: the mask of the lanes inside the tile) writes the hit triangles of the active lanes.
+template <int N, class Intersect>
 void trace_tiles_ray_packets(const Backend& backend, const RayGen& gen, std::span<std::uint32_t> out, const Intersect& isect) {
-    trace_tiles_packets<16>(backend, gen, out, [&](const Rayf* rays, const int* valid, std::uint32_t* prims) {
-        RayPacket<float, 16> p;
+    trace_tiles_packets<N>(backend, gen, out, [&](const Rayf* rays, const int* valid, std::uint32_t* prims) {
+        RayPacket<float, N> p;
         std::uint32_t active = 0;
-        for (int k = 0; k < 16; ++k) {
+        for (int k = 0; k < N; ++k) {
             p.set(k, rays[k]);
             active |= valid[k] ? std::uint32_t(1) << k : 0u;
         }
-        isect(static_cast<const RayPacket<float, 16>&>(p), active, prims);
+        isect(static_cast<const RayPacket<float, N>&>(p), active, prims);
     });
 }
 

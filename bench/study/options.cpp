@@ -134,8 +134,9 @@ void define(CLI::App& app, Options& o, Raw& raw) {
                    "trace time per effect; the PNG renders then show those effects"))
         ->type_name("E");
     app.add_option("--rays", raw.rays,
-                   wrap("packet (default): primary rays traced in packets of 16 (4x4 pixels of a tile: dynbvh's packet "
-                   "traversal on wide trees, rtcIntersect16 for Embree); single: one ray at a time (intersect, rtcIntersect1)"))
+                   wrap("packet (default): primary rays traced in packets (dynbvh's packet traversal: 32 rays = 8x4 pixels on "
+                   "wide trees and two-level scenes; rtcIntersect16 on 4x4 pixels for Embree); single: one ray at a "
+                   "time (intersect, rtcIntersect1)"))
         ->type_name("R");
     app.add_option("--effects-depth", o.effects_depth, "most reflection/refraction bounces with --effects auto (default 5)")
         ->type_name("N")

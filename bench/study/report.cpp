@@ -569,10 +569,10 @@ std::string write_report(const StudyResults& r) {
     md += "Protocol (thesis chapter 4-5): for every scene x builder x resolution x repetition, every selected frame is produced "
           "first (untimed), then built (timed) and traced with one primary ray per pixel from the scene's camera (timed; "
           "16x16 pixel tiles in parallel, closest hit with the robust box test and watertight triangles for our builders; " +
-          std::string(r.options.packets ? "rays in packets of 16 (4x4 pixels): `dynbvh::intersect(tree, tris, RayPacket<float, 16>)` on "
-                                          "wide trees (single rays on binary trees and two-level), `rtcIntersect16` for Embree (`--rays single`: "
-                                          "one ray at a time)"
-                                        : "one ray at a time: `dynbvh::intersect`, `rtcIntersect1` for Embree (`--rays packet`: packets of 16)") +
+          std::string(r.options.packets ? "rays in packets: `dynbvh::intersect(tree, tris, RayPacket<float, 32>)` on 8x4 pixels (two 4x4 halves) for "
+                                          "wide trees and two-level scenes, single rays on binary trees; `rtcIntersect16` "
+                                          "on 4x4 pixels for Embree (`--rays single`: one ray at a time)"
+                                        : "one ray at a time: `dynbvh::intersect`, `rtcIntersect1` for Embree (`--rays packet`: packets)") +
           "). FPS = frames / (total build + total trace). SAH with Ct = 3, "
           "Ci = 2 (not available for Embree). Raw data: [study.json](study.json), [study.csv](study.csv).\n\n";
     if (r.options.frame_step == 0 && r.options.frames > 0)

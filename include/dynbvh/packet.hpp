@@ -1,6 +1,6 @@
 // SPDX-License-Identifier: MIT
 /// @file packet.hpp
-/// Closest-hit and any-hit queries of packets of 8 or 16 rays against a `WideBvh` (Wald, Slusallek,
+/// Closest-hit and any-hit queries of packets of 8, 16 or 32 rays against a `WideBvh` (Wald, Slusallek,
 /// Benthin, Wagner 2001, "Interactive Rendering with Coherent Ray Tracing"; Benthin, Wald, Woop, Ernst,
 /// Mark 2012, "Combining Single and Packet-Ray Tracing for Arbitrary Ray Distributions on the Intel MIC
 /// Architecture"):
@@ -44,8 +44,11 @@
 /// tri::moller_trumbore with the scalar test's operations lane by lane (bit for bit as long as neither
 /// side is FMA-contracted, as for the block test).
 /// SIMD width: packets of 16 take one AVX-512 step per operation where the compiler targets AVX-512F
-/// (detail::Lanes16, unless DYNBVH_NO_AVX512), else two AVX steps (or four SSE ones); packets of 8 take
-/// AVX (or SSE) steps. The answers do not depend on it.
+/// (detail::Lanes16, unless DYNBVH_NO_AVX512), else two AVX steps (or four SSE ones); packets of 32 take
+/// two such steps, packets of 8 AVX (or SSE) steps. The answers do not depend on it. Packets of 32 (an
+/// 8x4 tile as two 4x4 halves, lanes 0-15 and 16-31) share each node's interval test and each
+/// triangle's set-up among twice the rays: on coherent primary rays they are the fastest (bench_trace's
+/// x32 rows).
 /// Other cases (double trees, box::fast, -DDYNBVH_NO_SIMD, non-x86): a loop of single-ray queries, which
 /// gives the same answers by construction. (box::fast is not conservative, so its answers could depend
 /// on the visit order: its packets are traced ray by ray.)
@@ -76,12 +79,12 @@
 
 namespace dynbvh {
 
-/// N rays, structure of arrays (N = 8 or 16; 64-byte aligned): lane k is the ray
+/// N rays, structure of arrays (N = 8, 16 or 32; 64-byte aligned): lane k is the ray
 /// org = (org_x[k], org_y[k], org_z[k]), dir = (dir_x[k], dir_y[k], dir_z[k]), [tmin[k], tmax[k]], with
 /// Ray's conventions. A default packet holds N default rays (Ray<T>{}).
 template <class T, int N>
 struct alignas(64) RayPacket {
-    static_assert(N == 8 || N == 16, "dynbvh: ray packets have 8 or 16 rays");
+    static_assert(N == 8 || N == 16 || N == 32, "dynbvh: ray packets have 8, 16 or 32 rays");
     static_assert(std::is_same_v<T, float> || std::is_same_v<T, double>, "dynbvh: scalar must be float or double");
     /// Rays per packet.
     static constexpr int size = N;
@@ -125,7 +128,7 @@ struct alignas(64) RayPacket {
 /// u = v = 0, prim = invalid_prim). A default HitPacket is all misses.
 template <class T, int N>
 struct alignas(64) HitPacket {
-    static_assert(N == 8 || N == 16, "dynbvh: ray packets have 8 or 16 rays");
+    static_assert(N == 8 || N == 16 || N == 32, "dynbvh: ray packets have 8, 16 or 32 rays");
     /// Rays per packet.
     static constexpr int size = N;
     /// Distance along each lane's ray (multiples of |dir|); +inf for a miss.
