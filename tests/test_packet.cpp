@@ -100,7 +100,8 @@ void check_all_masks(const WT& tree, std::span<const Trianglef> tris, std::span<
             check_packets<Policy, 8>(tree, tris, rays, [](std::size_t) { return 0u; }, cfg, t);
             // 32 (two 16-lane halves): all lanes, and a random mask (lanes 16-31 too)
             check_packets<Policy, 32>(tree, tris, rays, [](std::size_t) { return ~std::uint32_t(0); }, cfg, t);
-            check_packets<Policy, 32>(tree, tris, rays, [&](std::size_t) { return std::uint32_t(rng.next()); }, cfg, t);
+            if (!test::sanitized())   // (CI time: the sanitized build checks the full mask)
+                check_packets<Policy, 32>(tree, tris, rays, [&](std::size_t) { return std::uint32_t(rng.next()); }, cfg, t);
         }
     }
 }
