@@ -39,11 +39,12 @@ void Trees<Prim>::trace(const BuilderSpec& spec, const Backend& backend, std::sp
     with_policy(spec, [&]<class Policy>() {
         with_tree(spec, *this, [&](const auto& tree) {
             using Tree = std::remove_cvref_t<decltype(tree)>;
-            if constexpr (requires { Tree::width; }) {   // wide trees: packets of 32 (packet.hpp) unless --rays single
+            if constexpr (requires { Tree::width; }) {   // wide trees: packets of primary_packet_rays (packet.hpp) unless --rays single
                 if (spec.packets) {
-                    trace_tiles_ray_packets<32>(backend, gen, out, [&](const RayPacket<float, 32>& p, std::uint32_t active, std::uint32_t* prims) {
-                        const HitPacket<float, 32> h = dynbvh::intersect<Policy>(tree, tris, p, active);
-                        for (int k = 0; k < 32; ++k) prims[k] = h.prim[k];
+                    constexpr int N = primary_packet_rays;
+                    trace_tiles_ray_packets<N>(backend, gen, out, [&](const RayPacket<float, N>& p, std::uint32_t active, std::uint32_t* prims) {
+                        const HitPacket<float, N> h = dynbvh::intersect<Policy>(tree, tris, p, active);
+                        for (int k = 0; k < N; ++k) prims[k] = h.prim[k];
                     });
                     return;
                 }

@@ -77,10 +77,11 @@ public:
 
     void trace(std::span<const Trianglef>, const RayGen& gen, std::span<std::uint32_t> out) override {
         const Scene& sc = *scene_;
-        if (spec_.packets) {   // packets of 32 (8x4 pixels) through both levels (TwoLevel::intersect of a RayPacket)
-            trace_tiles_ray_packets<32>(backend_, gen, out, [&](const RayPacket<float, 32>& p, std::uint32_t active, std::uint32_t* prims) {
-                const InstanceHitPacket<float, 32> h = sc.intersect(p, active);
-                for (int k = 0; k < 32; ++k) prims[k] = frame_prim(h.hit(k)).prim;
+        if (spec_.packets) {   // packets of primary_packet_rays through both levels (TwoLevel::intersect of a RayPacket)
+            constexpr int N = primary_packet_rays;
+            trace_tiles_ray_packets<N>(backend_, gen, out, [&](const RayPacket<float, N>& p, std::uint32_t active, std::uint32_t* prims) {
+                const InstanceHitPacket<float, N> h = sc.intersect(p, active);
+                for (int k = 0; k < N; ++k) prims[k] = frame_prim(h.hit(k)).prim;
             });
             return;
         }

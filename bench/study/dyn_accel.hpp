@@ -52,6 +52,10 @@ void trace_tiles_packets(const Backend& backend, const RayGen& gen, std::span<st
     });
 }
 
+/// Rays per packet of the study's primary rays through our packet traversal (wide trees and two-level
+/// scenes): 32 = 8x4 pixels as two 4x4 halves (for_each_packet), the fastest on coherent rays.
+inline constexpr int primary_packet_rays = 32;
+
 /// trace_tiles_packets<N> with each packet as a RayPacket<float, N>: `isect(packet, active, prims)`
 /// (active: the mask of the lanes inside the tile) writes the hit triangles of the active lanes.
 template <int N, class Intersect>
