@@ -60,7 +60,6 @@
 #include <bit>
 #include <cstddef>
 #include <cstdint>
-#include <cstring>
 #include <limits>
 #include <new>
 #include <span>
@@ -258,6 +257,16 @@ DYNBVH_ALWAYS_INLINE __m256d dot3(__m256d a, __m256d b, __m256d c, __m256d d, __
 #endif
 #if defined(DYNBVH_AVX512)
 DYNBVH_ALWAYS_INLINE __m512 select(__mmask16 m, __m512 a, __m512 b) noexcept { return _mm512_mask_blend_ps(m, b, a); }
+/// The eight- and sixteen-lane forms of sub_mul etc., for the gathered-lane exact test (exact8). (Every
+/// AVX-512 target has FMA.)
+DYNBVH_ALWAYS_INLINE __m256 sub_mul(__m256 a, __m256 b, __m256 c) noexcept { return _mm256_fnmadd_ps(b, c, a); }
+DYNBVH_ALWAYS_INLINE __m512d sub_mul(__m512d a, __m512d b, __m512d c) noexcept { return _mm512_fnmadd_pd(b, c, a); }
+DYNBVH_ALWAYS_INLINE __m512d mul_sub_mul(__m512d a, __m512d b, __m512d c, __m512d d) noexcept {
+    return _mm512_fmsub_pd(a, b, _mm512_mul_pd(c, d));
+}
+DYNBVH_ALWAYS_INLINE __m512d dot3(__m512d a, __m512d b, __m512d c, __m512d d, __m512d e, __m512d f) noexcept {
+    return _mm512_fmadd_pd(a, b, _mm512_fmadd_pd(c, d, _mm512_mul_pd(e, f)));
+}
 /// Eight lanes of x, the lower (H = 0) or upper (H = 1) ones. (The zero-masked form: in GCC 12 the
 /// unmasked extract, which _mm512_castps512_ps256 uses too, trips -Wuninitialized.)
 template <int H>
@@ -333,6 +342,7 @@ struct PacketTraversal {
     const WB& bvh;
     std::span<const Triangle<float>> tris;
     const RayPacket<float, N>& pk;   // origins, directions and tmin are read from the packet itself
+    HitPacket<float, N>& res;        // each lane's closest hit so far (all misses on entry), its answer at the end
     unsigned min_rays;
     bool interval;
     // per-lane state (lanes outside the current group hold whatever; every test is masked)
@@ -344,17 +354,7 @@ struct PacketTraversal {
     alignas(64) float tmax[NZ];                 // the closest hit so far; -inf outside the group
     alignas(64) float sx[NZ], sy[NZ];           // watertight: shear (prepared's sx, sy)
     alignas(64) double rcpd[NZ], sxd[NZ], syd[NZ];   // watertight: prepared's rcp_dz, sx_d, sy_d
-    std::uint32_t best[NZ];
-    /// Per-lane hits, left uninitialised until begin_group (Hit's member initialisers would fill all N
-    /// on every packet, and begin_group sets them again).
-    struct LaneHits {
-        union {
-            Hit<float> h[NZ];
-        };
-        LaneHits() noexcept {}
-        DYNBVH_ALWAYS_INLINE Hit<float>& operator[](int k) noexcept { return h[k]; }
-        DYNBVH_ALWAYS_INLINE const Hit<float>& operator[](int k) const noexcept { return h[k]; }
-    } hit;
+    std::uint32_t* const best = res.prim;       // each lane's best triangle so far (any hit: its hit)
     union PtStore {
         PtStore() noexcept {}
         TriPrepared value;
@@ -373,8 +373,12 @@ struct PacketTraversal {
     float oxlo = 0, oxhi = 0, oylo = 0, oyhi = 0, ozlo = 0, ozhi = 0;
     float ixlo = 0, ixhi = 0, iylo = 0, iyhi = 0, izlo = 0, izhi = 0, tminlo = 0;
 
-    PacketTraversal(const WB& b, std::span<const Triangle<float>> t, const RayPacket<float, N>& p, const PacketConfig& cfg) noexcept
-        : bvh(b), tris(t), pk(p), min_rays(cfg.min_rays), interval(cfg.interval) {}
+    /// The traversal of packet `p` against (b, t); each traced lane's answer goes to `out`, whose lanes
+    /// must hold misses (HitPacket's default) on entry: they are the lanes' state, so no group sets up
+    /// or copies out hits.
+    PacketTraversal(const WB& b, std::span<const Triangle<float>> t, const RayPacket<float, N>& p, const PacketConfig& cfg,
+                    HitPacket<float, N>& out) noexcept
+        : bvh(b), tris(t), pk(p), res(out), min_rays(cfg.min_rays), interval(cfg.interval) {}
 
     /// The lanes of `active` the packet takes: traceable rays without a direction component in
     /// (0, FLT_MIN) (those are the rays box::robust::prepared does not scale: t_scale 1). Computes the
@@ -436,12 +440,6 @@ struct PacketTraversal {
             okx = o[kx];
             oky = o[ky];
             okz = o[kz];
-        }
-        // (one copy of a miss per lane: the member-wise assignment is three scalar stores per lane)
-        static constexpr Hit<float> miss{};
-        for (int k = 0; k < N; ++k) {
-            best[k] = invalid_prim;
-            std::memcpy(static_cast<void*>(&hit[k]), &miss, sizeof miss);
         }
         sheared = false;
         // the group's bounds: min / max over its lanes (the others masked to +-inf); named registers,
@@ -619,16 +617,15 @@ struct PacketTraversal {
 
     /// Records a hit of lane k (already passed replaces_hit for closest hit).
     DYNBVH_ALWAYS_INLINE void take(int k, float t, float u, float v, std::uint32_t prim) noexcept {
-        hit[k].t = t;
-        hit[k].u = u;
-        hit[k].v = v;
+        res.t[k] = t;
+        res.u[k] = u;
+        res.v[k] = v;
+        best[k] = prim;
         if constexpr (AnyHit) {
-            hit[k].prim = prim;
             alive &= ~(std::uint32_t(1) << k);
             tmax[k] = -std::numeric_limits<float>::infinity();   // done: out of the group's tmax bound
         } else {
             tmax[k] = t;
-            best[k] = prim;
         }
     }
 
@@ -660,6 +657,32 @@ struct PacketTraversal {
     template <class Src>
     DYNBVH_ALWAYS_INLINE void confirm(const Src& src, std::uint32_t prim, std::uint32_t cand) noexcept {
         if (cand == 0) return;
+#if defined(DYNBVH_AVX512) && !defined(TMP_NO_EXACT8)
+        if constexpr (N % 16 == 0) {
+            // every candidate of a 16-lane step, eight at a time, gathered into the lanes of one test
+            const __m512i iota = _mm512_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
+            for (int o = 0; o < N; o += 16) {
+                const std::uint32_t c16 = cand >> o & 0xffffu;
+                if (c16 == 0) continue;
+                const int count = std::popcount(c16);
+                alignas(64) int lane[16];
+                const __m512i idx = _mm512_maskz_compress_epi32(__mmask16(c16), iota);
+                _mm512_store_si512(lane, idx);
+                for (int b = 0; b < count; b += 8) {
+                    alignas(32) float t8[8], u8[8], v8[8];
+                    const __m512i at = b == 0 ? idx : _mm512_maskz_alignr_epi32(__mmask16(0xffff), idx, idx, 8);
+                    const unsigned in = count - b >= 8 ? 0xffu : (1u << (count - b)) - 1u;
+                    for (unsigned c = exact8(src, o, at, t8, u8, v8) & in; c != 0; c &= c - 1) {
+                        const int j = std::countr_zero(c), k = o + lane[b + j];
+                        if constexpr (!AnyHit)
+                            if (!replaces_hit(t8[j], tmax[k], prim, best[k])) continue;
+                        take(k, t8[j], u8[j], v8[j], prim);
+                    }
+                }
+            }
+            return;
+        }
+#endif
 #if defined(DYNBVH_AVX)
         // four lanes at a time where at least three of them are candidates (a large triangle under a
         // packet), the others one by one
@@ -765,6 +788,80 @@ struct PacketTraversal {
         _mm_store_ps(u4, _mm256_cvtpd_ps(_mm256_mul_pd(w1, inv)));
         _mm_store_ps(v4, _mm256_cvtpd_ps(_mm256_mul_pd(w2, inv)));
         return unsigned(_mm_movemask_ps(in)) & unsigned(_mm256_movemask_pd(ok));
+    }
+#endif
+
+#if defined(DYNBVH_AVX512)
+    /// exact4's test on eight lanes of the 16-lane step at o, gathered: lane j of the test is ray
+    /// o + at[j] (at: lane indices 0..15 in its lower eight 32-bit lanes). The same operations as the
+    /// scalar test per lane (the same bits); bit j of the result: a hit within [tmin, tmax], with t, u,
+    /// v in t8[j], u8[j], v8[j].
+    template <class Src>
+    DYNBVH_ALWAYS_INLINE unsigned exact8(const Src& src, int o, __m512i at, float* t8, float* u8, float* v8) const noexcept {
+        const std::size_t X = std::size_t(kx), Y = std::size_t(ky), Z = std::size_t(kz);
+        const auto g32 = [&](const float* p) { return half8<0>(_mm512_maskz_permutexvar_ps(__mmask16(0xffff), at, _mm512_loadu_ps(p + o))); };
+        const __m512i at64 = _mm512_maskz_cvtepu32_epi64(__mmask8(0xff), _mm256_castps_si256(half8<0>(_mm512_castsi512_ps(at))));
+        const auto g64 = [&](const double* p) { return _mm512_permutex2var_pd(_mm512_loadu_pd(p + o), at64, _mm512_loadu_pd(p + o + 8)); };
+        const __m256 OX = g32(okx), OY = g32(oky), OZ = g32(okz), SX = g32(sx), SY = g32(sy);
+        // float: vertex - origin, sheared (tri::watertight's test_axes)
+        __m512d xf[3], yf[3];
+        for (int i = 0; i < 3; ++i) {
+            const __m256 VX = _mm256_sub_ps(_mm256_set1_ps(src.c(i, X)), OX), VY = _mm256_sub_ps(_mm256_set1_ps(src.c(i, Y)), OY);
+            const __m256 VZ = _mm256_sub_ps(_mm256_set1_ps(src.c(i, Z)), OZ);
+            xf[i] = _mm512_maskz_cvtps_pd(__mmask8(0xff), sub_mul(VX, SX, VZ));
+            yf[i] = _mm512_maskz_cvtps_pd(__mmask8(0xff), sub_mul(VY, SY, VZ));
+        }
+        // double edge functions of the float vertices (exact products), the sign decision
+        const __m512d eu = _mm512_sub_pd(_mm512_mul_pd(xf[2], yf[1]), _mm512_mul_pd(yf[2], xf[1]));
+        const __m512d ev = _mm512_sub_pd(_mm512_mul_pd(xf[0], yf[2]), _mm512_mul_pd(yf[0], xf[2]));
+        const __m512d ew = _mm512_sub_pd(_mm512_mul_pd(xf[1], yf[0]), _mm512_mul_pd(yf[1], xf[0]));
+        const __m512d zero = _mm512_setzero_pd();
+        const __mmask8 pos = __mmask8(_mm512_cmp_pd_mask(eu, zero, _CMP_GE_OQ) & _mm512_cmp_pd_mask(ev, zero, _CMP_GE_OQ) &
+                                      _mm512_cmp_pd_mask(ew, zero, _CMP_GE_OQ));
+        const __mmask8 neg = __mmask8(_mm512_cmp_pd_mask(eu, zero, _CMP_LE_OQ) & _mm512_cmp_pd_mask(ev, zero, _CMP_LE_OQ) &
+                                      _mm512_cmp_pd_mask(ew, zero, _CMP_LE_OQ));
+        const __m512d det = _mm512_add_pd(_mm512_add_pd(eu, ev), ew);
+        const __mmask8 ok = __mmask8((pos | neg) & _mm512_cmp_pd_mask(det, zero, _CMP_NEQ_OQ));
+        if (ok == 0) return 0;
+        // finish: the accurate evaluation in double (tri::watertight::finish)
+        const __m512d one = _mm512_set1_pd(1.0);
+        const __m512d sg = _mm512_mask_blend_pd(_mm512_cmp_pd_mask(det, zero, _CMP_GT_OQ), _mm512_set1_pd(-1.0), one);
+        const __m512d DX = _mm512_maskz_cvtps_pd(__mmask8(0xff), OX), DY = _mm512_maskz_cvtps_pd(__mmask8(0xff), OY), DZ = _mm512_maskz_cvtps_pd(__mmask8(0xff), OZ);
+        const __m512d SXD = g64(sxd), SYD = g64(syd);
+        __m512d xd[3], yd[3], zd[3];
+        for (int i = 0; i < 3; ++i) {
+            zd[i] = _mm512_sub_pd(_mm512_set1_pd(double(src.c(i, Z))), DZ);
+            xd[i] = sub_mul(_mm512_sub_pd(_mm512_set1_pd(double(src.c(i, X))), DX), SXD, zd[i]);
+            yd[i] = sub_mul(_mm512_sub_pd(_mm512_set1_pd(double(src.c(i, Y))), DY), SYD, zd[i]);
+        }
+        __m512d w0 = _mm512_mul_pd(sg, mul_sub_mul(xd[2], yd[1], yd[2], xd[1]));
+        __m512d w1 = _mm512_mul_pd(sg, mul_sub_mul(xd[0], yd[2], yd[0], xd[2]));
+        __m512d w2 = _mm512_mul_pd(sg, mul_sub_mul(xd[1], yd[0], yd[1], xd[0]));
+        __m512d sum = _mm512_add_pd(_mm512_add_pd(w0, w1), w2);
+        const auto absmul = [](__m512d a, __m512d b) {
+            return _mm512_castsi512_pd(_mm512_and_si512(_mm512_castpd_si512(_mm512_mul_pd(a, b)), _mm512_set1_epi64(0x7fffffffffffffffLL)));
+        };
+        __m512d nsum = _mm512_add_pd(absmul(xd[2], yd[1]), absmul(yd[2], xd[1]));
+        nsum = _mm512_add_pd(nsum, absmul(xd[0], yd[2]));
+        nsum = _mm512_add_pd(nsum, absmul(yd[0], xd[2]));
+        nsum = _mm512_add_pd(nsum, absmul(xd[1], yd[0]));
+        nsum = _mm512_add_pd(nsum, absmul(yd[1], xd[0]));
+        const __m512d noise = _mm512_mul_pd(_mm512_set1_pd(0x1p-48), nsum);
+        const __mmask8 good = __mmask8(_mm512_cmp_pd_mask(w0, zero, _CMP_GE_OQ) & _mm512_cmp_pd_mask(w1, zero, _CMP_GE_OQ) &
+                                       _mm512_cmp_pd_mask(w2, zero, _CMP_GE_OQ) & _mm512_cmp_pd_mask(sum, noise, _CMP_GT_OQ));
+        // where the accurate weights are not trusted: the decision's own
+        w0 = _mm512_mask_blend_pd(good, _mm512_mul_pd(sg, eu), w0);
+        w1 = _mm512_mask_blend_pd(good, _mm512_mul_pd(sg, ev), w1);
+        w2 = _mm512_mask_blend_pd(good, _mm512_mul_pd(sg, ew), w2);
+        sum = _mm512_mask_blend_pd(good, _mm512_mul_pd(sg, det), sum);
+        const __m512d inv = _mm512_div_pd(one, sum);
+        const __m512d num = dot3(w0, zd[0], w1, zd[1], w2, zd[2]);
+        const __m256 tt = _mm512_maskz_cvtpd_ps(__mmask8(0xff), _mm512_mul_pd(_mm512_mul_pd(num, g64(rcpd)), inv));
+        const __m256 in = _mm256_and_ps(_mm256_cmp_ps(tt, g32(tmin), _CMP_GE_OQ), _mm256_cmp_ps(tt, g32(tmax), _CMP_LE_OQ));
+        _mm256_store_ps(t8, _mm256_add_ps(tt, _mm256_setzero_ps()));   // -0 -> +0
+        _mm256_store_ps(u8, _mm512_maskz_cvtpd_ps(__mmask8(0xff), _mm512_mul_pd(w1, inv)));
+        _mm256_store_ps(v8, _mm512_maskz_cvtpd_ps(__mmask8(0xff), _mm512_mul_pd(w2, inv)));
+        return unsigned(_mm256_movemask_ps(in)) & unsigned(ok);
     }
 #endif
 
@@ -890,7 +987,8 @@ struct PacketTraversal {
         const WideBoxTest<box::robust, float, W> wb(pb);
         using SE = WideStackEntry<I, float>;
         constexpr std::size_t cap = std::size_t(W - 1) * std::size_t(max_depth);
-        Hit<float> h = hit[k];
+        const Hit<float> h0{res.t[k], res.u[k], res.v[k], invalid_prim};   // (the traversal reads t, u, v; prim is its output)
+        Hit<float> h = h0;
         bool done;
         if (bvh.depth < max_depth) {
             SE stack[cap];
@@ -900,16 +998,15 @@ struct PacketTraversal {
         }
         if (!done) {   // a tree deeper than its depth field says: a stack that cannot overflow
             std::vector<SE> heap(std::size_t(W - 1) * (bvh.nodes.size() + 1));
-            h = hit[k];
+            h = h0;
             wide_traverse_octant<Policy, AnyHit, Oct>(bvh, tris, r, 1.0f, wb, h, heap.data(), heap.size(), node, count, tmax[k],
                                                        best[k]);
         }
         if constexpr (AnyHit) {
             if (h.prim != invalid_prim) take(k, h.t, h.u, h.v, h.prim);
         } else {
-            hit[k] = h;   // (h.prim is the lane's best triangle, or invalid_prim)
+            res.set(k, h);   // (h.prim is the lane's best triangle, or invalid_prim)
             tmax[k] = h.prim != invalid_prim ? h.t : tmax[k];
-            best[k] = h.prim;
         }
     }
 
@@ -1098,8 +1195,7 @@ struct PacketTraversal {
         if (!ok) [[unlikely]]   // the tree is deeper than its depth field: every ray of the group alone
             for (std::uint32_t c = group; c != 0; c &= c - 1) {
                 const int k = std::countr_zero(c);
-                hit[k] = single_lane<Policy, AnyHit>(bvh, tris, pk.ray(k));
-                best[k] = hit[k].prim;
+                res.set(k, single_lane<Policy, AnyHit>(bvh, tris, pk.ray(k)));
             }
     }
 };
@@ -1112,17 +1208,11 @@ void packet_traverse(const WideBvh<WN, P>& bvh, std::span<const Triangle<float>>
     using Policy = trace::policy<box::robust, Tri>;
     using PT = PacketTraversal<Tri, AnyHit, WN, P, N>;
     if (bvh.nodes.empty()) return;
-    PT st(bvh, tris, packet, cfg);
+    PT st(bvh, tris, packet, cfg, out);   // (the traced lanes' answers land in out)
     const std::uint32_t packable = st.classify(active);
     // every ray the packet does not take, and the few of a kind, go alone
     const std::uint32_t alone = (active & ~packable) | st.for_each_group(packable, cfg.min_rays, [&](std::uint32_t g, auto o) {
         st.template trace<decltype(o)::value>(g);
-        for (std::uint32_t c = g; c != 0; c &= c - 1) {
-            const int k = std::countr_zero(c);
-            Hit<float> h = st.hit[k];
-            if constexpr (!AnyHit) h.prim = st.best[k];
-            out.set(k, h);
-        }
         return true;
     });
     for (std::uint32_t c = alone; c != 0; c &= c - 1) {

@@ -804,7 +804,8 @@ private:
         using PT = detail::PacketTraversal<tri::moller_trumbore, AnyHit, TopNode, prim::indexed, N>;
         static_assert(object_traced_type::block_lanes > 0, "float objects are traced through block trees");
         if (top8_.depth >= PT::fixed_levels) return active;   // (never for our builders: 8-wide levels of instances)
-        PT st(top8_, {}, packet, cfg);
+        HitPacket<float, N> top;   // the top level's state per lane: closest t, u, v and triangle so far
+        PT st(top8_, {}, packet, cfg, top);
         std::uint32_t packable = st.classify(active);
         for (std::uint32_t c = packable; c != 0; c &= c - 1) {   // the float top level's origin bound
             const int k = std::countr_zero(c);
@@ -854,8 +855,8 @@ private:
                 const int j = std::countr_zero(c);
                 InstanceHit<float> r;
                 if (inst[j] != invalid_prim) {
-                    static_cast<Hit<float>&>(r) = st.hit[j];
-                    r.prim = AnyHit ? 0 : st.best[j];
+                    static_cast<Hit<float>&>(r) = top.hit(j);
+                    r.prim = AnyHit ? 0 : top.prim[j];
                     r.instance = inst[j];
                 }
                 out.set(j, r);
