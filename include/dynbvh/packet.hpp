@@ -799,6 +799,19 @@ struct PacketTraversal {
     template <class Src>
     DYNBVH_ALWAYS_INLINE unsigned exact8(const Src& src, int o, __m512i at, float* t8, float* u8, float* v8) const noexcept {
         const std::size_t X = std::size_t(kx), Y = std::size_t(ky), Z = std::size_t(kz);
+        __m256 px[3], py[3], pz[3];
+        for (int i = 0; i < 3; ++i) {
+            px[i] = _mm256_set1_ps(src.c(i, X));
+            py[i] = _mm256_set1_ps(src.c(i, Y));
+            pz[i] = _mm256_set1_ps(src.c(i, Z));
+        }
+        return exact8_lanes(px, py, pz, o, at, t8, u8, v8);
+    }
+
+    /// exact8 with a triangle per lane: vertex i of lane j's triangle is (px[i], py[i], pz[i]) lane j,
+    /// along kx, ky, kz.
+    DYNBVH_ALWAYS_INLINE unsigned exact8_lanes(const __m256 (&px)[3], const __m256 (&py)[3], const __m256 (&pz)[3], int o, __m512i at,
+                                               float* t8, float* u8, float* v8) const noexcept {
         const auto g32 = [&](const float* p) { return half8<0>(_mm512_maskz_permutexvar_ps(__mmask16(0xffff), at, _mm512_loadu_ps(p + o))); };
         const __m512i at64 = _mm512_maskz_cvtepu32_epi64(__mmask8(0xff), _mm256_castps_si256(half8<0>(_mm512_castsi512_ps(at))));
         const auto g64 = [&](const double* p) { return _mm512_permutex2var_pd(_mm512_loadu_pd(p + o), at64, _mm512_loadu_pd(p + o + 8)); };
@@ -806,8 +819,7 @@ struct PacketTraversal {
         // float: vertex - origin, sheared (tri::watertight's test_axes)
         __m512d xf[3], yf[3];
         for (int i = 0; i < 3; ++i) {
-            const __m256 VX = _mm256_sub_ps(_mm256_set1_ps(src.c(i, X)), OX), VY = _mm256_sub_ps(_mm256_set1_ps(src.c(i, Y)), OY);
-            const __m256 VZ = _mm256_sub_ps(_mm256_set1_ps(src.c(i, Z)), OZ);
+            const __m256 VX = _mm256_sub_ps(px[i], OX), VY = _mm256_sub_ps(py[i], OY), VZ = _mm256_sub_ps(pz[i], OZ);
             xf[i] = _mm512_maskz_cvtps_pd(__mmask8(0xff), sub_mul(VX, SX, VZ));
             yf[i] = _mm512_maskz_cvtps_pd(__mmask8(0xff), sub_mul(VY, SY, VZ));
         }
@@ -830,9 +842,10 @@ struct PacketTraversal {
         const __m512d SXD = g64(sxd), SYD = g64(syd);
         __m512d xd[3], yd[3], zd[3];
         for (int i = 0; i < 3; ++i) {
-            zd[i] = _mm512_sub_pd(_mm512_set1_pd(double(src.c(i, Z))), DZ);
-            xd[i] = sub_mul(_mm512_sub_pd(_mm512_set1_pd(double(src.c(i, X))), DX), SXD, zd[i]);
-            yd[i] = sub_mul(_mm512_sub_pd(_mm512_set1_pd(double(src.c(i, Y))), DY), SYD, zd[i]);
+            const auto wide = [](__m256 x) { return _mm512_maskz_cvtps_pd(__mmask8(0xff), x); };
+            zd[i] = _mm512_sub_pd(wide(pz[i]), DZ);
+            xd[i] = sub_mul(_mm512_sub_pd(wide(px[i]), DX), SXD, zd[i]);
+            yd[i] = sub_mul(_mm512_sub_pd(wide(py[i]), DY), SYD, zd[i]);
         }
         __m512d w0 = _mm512_mul_pd(sg, mul_sub_mul(xd[2], yd[1], yd[2], xd[1]));
         __m512d w1 = _mm512_mul_pd(sg, mul_sub_mul(xd[0], yd[2], yd[0], xd[2]));
@@ -862,6 +875,44 @@ struct PacketTraversal {
         _mm256_store_ps(u8, _mm512_maskz_cvtpd_ps(__mmask8(0xff), _mm512_mul_pd(w1, inv)));
         _mm256_store_ps(v8, _mm512_maskz_cvtpd_ps(__mmask8(0xff), _mm512_mul_pd(w2, inv)));
         return unsigned(_mm256_movemask_ps(in)) & unsigned(ok);
+    }
+#endif
+
+#if defined(DYNBVH_AVX512)
+    /// tri::watertight, step 2 for a block of eight (closest hit, packets of 16 and 32): the candidate
+    /// (ray, triangle) pairs of all of the block's triangles (cand[j]: triangle j's lanes) in the order
+    /// confirm would take them (triangle by triangle, lane by lane), eight pairs per exact8_lanes. A
+    /// lane twice in one batch is tested against its tmax of the batch's start, so each hit is checked
+    /// against the lane's current tmax again before replaces_hit: the same hits as confirm's.
+    DYNBVH_ALWAYS_INLINE void confirm_block(const TriangleBlock<8>& b, int n, const std::uint32_t* cand) noexcept {
+        const __m512i iota = _mm512_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
+        const std::size_t X = std::size_t(kx), Y = std::size_t(ky), Z = std::size_t(kz);
+        for (int o = 0; o < N; o += 16) {
+            alignas(64) int lane[8 * 16 + 16], tri[8 * 16 + 16];
+            int count = 0;
+            for (int j = 0; j < n; ++j) {   // (16 slots each: stores past count are overwritten or unread)
+                const std::uint32_t c16 = cand[j] >> o & 0xffffu;
+                _mm512_storeu_si512(lane + count, _mm512_maskz_compress_epi32(__mmask16(c16), iota));
+                _mm512_storeu_si512(tri + count, _mm512_set1_epi32(j));
+                count += std::popcount(c16);
+            }
+            for (int b0 = 0; b0 < count; b0 += 8) {
+                const __m256i tj = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(tri + b0));
+                const auto vert = [&](int i, std::size_t a) { return _mm256_permutevar8x32_ps(_mm256_load_ps(b.v[i][a]), tj); };
+                const __m256 px[3] = {vert(0, X), vert(1, X), vert(2, X)};
+                const __m256 py[3] = {vert(0, Y), vert(1, Y), vert(2, Y)};
+                const __m256 pz[3] = {vert(0, Z), vert(1, Z), vert(2, Z)};
+                const __m512i at = _mm512_castsi256_si512(_mm256_loadu_si256(reinterpret_cast<const __m256i*>(lane + b0)));
+                alignas(32) float t8[8], u8[8], v8[8];
+                const unsigned in = count - b0 >= 8 ? 0xffu : (1u << (count - b0)) - 1u;
+                for (unsigned c = exact8_lanes(px, py, pz, o, at, t8, u8, v8) & in; c != 0; c &= c - 1) {
+                    const int j = std::countr_zero(c), k = o + lane[b0 + j];
+                    const std::uint32_t prim = b.prim[tri[b0 + j]];
+                    if (!(t8[j] <= tmax[k]) || !replaces_hit(t8[j], tmax[k], prim, best[k])) continue;
+                    take(k, t8[j], u8[j], v8[j], prim);
+                }
+            }
+        }
     }
 #endif
 
@@ -938,6 +989,12 @@ struct PacketTraversal {
             if (!sheared) [[unlikely]] make_shear();
             std::uint32_t cand[8];
             for (int j = 0; j < n; ++j) cand[j] = filter(src(j), m);
+#if defined(DYNBVH_AVX512)
+            if constexpr (!AnyHit && N % 16 == 0 && std::is_same_v<decltype(src(0)), BlockLane<8>>) {
+                confirm_block(src(0).b, n, cand);
+                return true;
+            }
+#endif
             for (int j = 0; j < n; ++j) {
                 if constexpr (AnyHit) cand[j] &= alive;
                 confirm(src(j), prim(j), cand[j]);
