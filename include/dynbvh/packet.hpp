@@ -657,7 +657,7 @@ struct PacketTraversal {
     template <class Src>
     DYNBVH_ALWAYS_INLINE void confirm(const Src& src, std::uint32_t prim, std::uint32_t cand) noexcept {
         if (cand == 0) return;
-#if defined(DYNBVH_AVX512) && !defined(TMP_NO_EXACT8)
+#if defined(DYNBVH_AVX512)
         if constexpr (N % 16 == 0) {
             // every candidate of a 16-lane step, eight at a time, gathered into the lanes of one test
             const __m512i iota = _mm512_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
@@ -879,30 +879,74 @@ struct PacketTraversal {
 #endif
 
 #if defined(DYNBVH_AVX512)
-    /// tri::watertight, step 2 for a block of eight (closest hit, packets of 16 and 32): the candidate
-    /// (ray, triangle) pairs of all of the block's triangles (cand[j]: triangle j's lanes) in the order
-    /// confirm would take them (triangle by triangle, lane by lane), eight pairs per exact8_lanes. A
-    /// lane twice in one batch is tested against its tmax of the batch's start, so each hit is checked
-    /// against the lane's current tmax again before replaces_hit: the same hits as confirm's.
-    DYNBVH_ALWAYS_INLINE void confirm_block(const TriangleBlock<8>& b, int n, const std::uint32_t* cand) noexcept {
+    /// tri::watertight on a block of eight against the rays of m (closest hit, packets of 16 and 32,
+    /// AVX-512), in place of filter + confirm per triangle. Filter, per 16-lane step, the same float
+    /// filter per (ray, triangle) pair as filter's: with more rays than triangles, triangle by triangle
+    /// against the step's rays; else two rays at a time, each against the block's triangles (lanes 0-7
+    /// the first ray, 8-15 the second), so a leaf that few rays reach costs few steps. Confirm: the
+    /// pairs kept, in the filter's order, eight per exact8_lanes (rays gathered by lane
+    /// index, triangles' vertices permuted per lane). A lane's triangles come in the block's order;
+    /// a lane twice in one batch is tested against its tmax of the batch's start, so each hit is
+    /// checked against the lane's current tmax again before replaces_hit: the hits of confirm's order.
+    DYNBVH_ALWAYS_INLINE void test_block(const TriangleBlock<8>& b, int n, std::uint32_t m) noexcept {
+        using F = WatertightFilter<V>;
+        constexpr __mmask16 all = 0xffff;
         const __m512i iota = _mm512_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
+        const __m512i tri16 = _mm512_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 4, 5, 6, 7);
+        const unsigned used = (1u << n) - 1u;
+        const __mmask16 valid = __mmask16(used | used << 8);   // (padding lanes have NaN vertices: never rejected)
         const std::size_t X = std::size_t(kx), Y = std::size_t(ky), Z = std::size_t(kz);
+        // the block's vertices along kx, ky, kz, in both halves
+        const auto dup = [&b](int i, std::size_t a) {
+            const __m512 x = _mm512_maskz_loadu_ps(__mmask16(0x00ff), b.v[i][a]);
+            return _mm512_maskz_shuffle_f32x4(all, x, x, 0x44);
+        };
+        const __m512 ax = dup(0, X), ay = dup(0, Y), az = dup(0, Z);
+        const __m512 bx = dup(1, X), by = dup(1, Y), bz = dup(1, Z);
+        const __m512 cx = dup(2, X), cy = dup(2, Y), cz = dup(2, Z);
         for (int o = 0; o < N; o += 16) {
-            alignas(64) int lane[8 * 16 + 16], tri[8 * 16 + 16];
+            const std::uint32_t mr = m >> o & 0xffffu;
+            if (mr == 0) continue;
+            // Filter: the kept pairs as (lane, triangle), ray by ray.
+            alignas(64) int rays[16], lane[16 * 8 + 16], tri[16 * 8 + 16];
+            _mm512_store_si512(rays, _mm512_maskz_compress_epi32(__mmask16(mr), iota));
+            const int nr = std::popcount(mr);
+            const __m512 OX = _mm512_loadu_ps(okx + o), OY = _mm512_loadu_ps(oky + o), OZ = _mm512_loadu_ps(okz + o);
+            const __m512 SX = _mm512_loadu_ps(sx + o), SY = _mm512_loadu_ps(sy + o);
             int count = 0;
-            for (int j = 0; j < n; ++j) {   // (16 slots each: stores past count are overwritten or unread)
-                const std::uint32_t c16 = cand[j] >> o & 0xffffu;
-                _mm512_storeu_si512(lane + count, _mm512_maskz_compress_epi32(__mmask16(c16), iota));
-                _mm512_storeu_si512(tri + count, _mm512_set1_epi32(j));
-                count += std::popcount(c16);
+            if (nr > n) {   // many rays: triangle by triangle against all of them (filter's steps)
+                for (int j = 0; j < n; ++j) {
+                    const auto bc = [&b, j](int i, std::size_t a) { return _mm512_set1_ps(b.v[i][a][j]); };
+                    const auto va = F::shear(V::sub(bc(0, X), OX), V::sub(bc(0, Y), OY), V::sub(bc(0, Z), OZ), SX, SY);
+                    const auto vb = F::shear(V::sub(bc(1, X), OX), V::sub(bc(1, Y), OY), V::sub(bc(1, Z), OZ), SX, SY);
+                    const auto vc = F::shear(V::sub(bc(2, X), OX), V::sub(bc(2, Y), OY), V::sub(bc(2, Z), OZ), SX, SY);
+                    const __mmask16 keep = __mmask16(~F::rejects(va, vb, vc) & mr);
+                    _mm512_storeu_si512(lane + count, _mm512_maskz_compress_epi32(keep, iota));
+                    _mm512_storeu_si512(tri + count, _mm512_set1_epi32(j));
+                    count += std::popcount(unsigned(keep));
+                }
             }
+            for (int r = 0; r < nr && nr <= n; r += 2) {   // few rays: two at a time against all triangles
+                const bool two = r + 1 < nr;
+                const __m512i sel = _mm512_mask_blend_epi32(__mmask16(0xff00), _mm512_set1_epi32(rays[r]), _mm512_set1_epi32(two ? rays[r + 1] : rays[r]));
+                const auto at = [&](__m512 x) { return _mm512_maskz_permutexvar_ps(all, sel, x); };
+                const __m512 ox = at(OX), oy = at(OY), oz = at(OZ), shx = at(SX), shy = at(SY);
+                const auto va = F::shear(V::sub(ax, ox), V::sub(ay, oy), V::sub(az, oz), shx, shy);
+                const auto vb = F::shear(V::sub(bx, ox), V::sub(by, oy), V::sub(bz, oz), shx, shy);
+                const auto vc = F::shear(V::sub(cx, ox), V::sub(cy, oy), V::sub(cz, oz), shx, shy);
+                const __mmask16 keep = __mmask16(~F::rejects(va, vb, vc) & valid & (two ? 0xffffu : 0x00ffu));
+                _mm512_storeu_si512(lane + count, _mm512_maskz_compress_epi32(keep, sel));
+                _mm512_storeu_si512(tri + count, _mm512_maskz_compress_epi32(keep, tri16));
+                count += std::popcount(unsigned(keep));
+            }
+            // Confirm, eight pairs at a time.
             for (int b0 = 0; b0 < count; b0 += 8) {
                 const __m256i tj = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(tri + b0));
                 const auto vert = [&](int i, std::size_t a) { return _mm256_permutevar8x32_ps(_mm256_load_ps(b.v[i][a]), tj); };
                 const __m256 px[3] = {vert(0, X), vert(1, X), vert(2, X)};
                 const __m256 py[3] = {vert(0, Y), vert(1, Y), vert(2, Y)};
                 const __m256 pz[3] = {vert(0, Z), vert(1, Z), vert(2, Z)};
-                const __m512i at = _mm512_castsi256_si512(_mm256_loadu_si256(reinterpret_cast<const __m256i*>(lane + b0)));
+                const __m512i at = _mm512_maskz_loadu_epi32(__mmask16(0x00ff), lane + b0);
                 alignas(32) float t8[8], u8[8], v8[8];
                 const unsigned in = count - b0 >= 8 ? 0xffu : (1u << (count - b0)) - 1u;
                 for (unsigned c = exact8_lanes(px, py, pz, o, at, t8, u8, v8) & in; c != 0; c &= c - 1) {
@@ -987,14 +1031,14 @@ struct PacketTraversal {
             if constexpr (AnyHit)
                 if ((m &= alive) == 0) return false;
             if (!sheared) [[unlikely]] make_shear();
-            std::uint32_t cand[8];
-            for (int j = 0; j < n; ++j) cand[j] = filter(src(j), m);
 #if defined(DYNBVH_AVX512)
             if constexpr (!AnyHit && N % 16 == 0 && std::is_same_v<decltype(src(0)), BlockLane<8>>) {
-                confirm_block(src(0).b, n, cand);
+                test_block(src(0).b, n, m);
                 return true;
             }
 #endif
+            std::uint32_t cand[8];
+            for (int j = 0; j < n; ++j) cand[j] = filter(src(j), m);
             for (int j = 0; j < n; ++j) {
                 if constexpr (AnyHit) cand[j] &= alive;
                 confirm(src(j), prim(j), cand[j]);
