@@ -40,7 +40,12 @@
 /// the same forward error bound per (ray, triangle) pair) and the exact test on each kept ray with that
 /// ray's tmax (a block's filters all run before its exact tests, in the block's order; with AVX, four
 /// kept rays at once where three or four of four neighbouring lanes are kept: the scalar test's
-/// operations in SIMD, the same bits);
+/// operations in SIMD, the same bits). With AVX-512 (packets of 16 and 32): the kept rays of a
+/// triangle, eight at a time, gathered into one 8-lane double exact test (exact8); for closest hits on
+/// blocks of eight, the whole block at once (test_block): per 16-lane step the filter runs triangle by
+/// triangle when the step holds more rays than the block has triangles, else two rays at a time
+/// against the block's eight triangles, and the kept (ray, triangle) pairs of all triangles go through
+/// the exact test eight at a time, in the order the scalar loop would take them;
 /// tri::moller_trumbore with the scalar test's operations lane by lane (bit for bit as long as neither
 /// side is FMA-contracted, as for the block test).
 /// SIMD width: packets of 16 take one AVX-512 step per operation where the compiler targets AVX-512F
@@ -52,6 +57,8 @@
 /// Other cases (double trees, box::fast, -DDYNBVH_NO_SIMD, non-x86): a loop of single-ray queries, which
 /// gives the same answers by construction. (box::fast is not conservative, so its answers could depend
 /// on the visit order: its packets are traced ray by ray.)
+/// State: each traced lane's closest hit so far lives in the result packet itself (no per-group set-up
+/// or copy-out of hits).
 /// Cost: no allocation unless the tree is deeper than 32 wide levels (then one heap stack per packet).
 /// Measured (bench_trace, primary rays, 8-wide block trees): see the README / the bench's packet rows.
 #pragma once
@@ -1070,6 +1077,24 @@ struct PacketTraversal {
             const I* ids = bvh.prim_ids.data();
             const Triangle<float>* lt = WB::precomputed ? bvh.leaf_triangles.data() : tris.data();
             const std::size_t end = std::size_t(first) + count;
+#if defined(DYNBVH_AVX512)
+            if constexpr (std::is_same_v<Tri, tri::watertight> && !AnyHit && N % 16 == 0) {
+                // eight triangles at a time copied into a block on the stack, for test_block (a copy of
+                // 8 triangles per packet is cheaper than the per-triangle filter and confirmations)
+                if (!sheared) [[unlikely]] make_shear();
+                for (std::size_t s0 = first; s0 < end; s0 += 8) {
+                    const int n = int(std::min<std::size_t>(8, end - s0));
+                    TriangleBlock<8> tb;
+                    for (int j = 0; j < n; ++j) {
+                        const std::size_t at = s0 + std::size_t(j);
+                        tb.set(j, WB::precomputed ? lt[at] : lt[ids[at]], static_cast<std::uint32_t>(ids[at]));
+                    }
+                    tb.pad(n);
+                    test_block(tb, n, m);
+                }
+                return;
+            }
+#endif
             for (std::size_t s0 = first; s0 < end; s0 += 8) {
                 const auto at = [&](int j) { return s0 + std::size_t(j); };
                 if (!test_triangles(int(std::min<std::size_t>(8, end - s0)),
