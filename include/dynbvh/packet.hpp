@@ -283,6 +283,135 @@ DYNBVH_ALWAYS_INLINE __m256 half8(__m512 x) noexcept {
 DYNBVH_ALWAYS_INLINE float hmin(__m512 x) noexcept { return hmin(_mm256_min_ps(half8<0>(x), half8<1>(x))); }
 DYNBVH_ALWAYS_INLINE float hmax(__m512 x) noexcept { return hmax(_mm256_max_ps(half8<0>(x), half8<1>(x))); }
 
+#endif
+#if defined(DYNBVH_AVX)
+/// Four lanes of the exact test (exact_lanes): float steps in SSE, double steps in AVX.
+struct ExactLanes4 {
+    using F = __m128;
+    using D = __m256d;
+    using M = __m256d;   // a double comparison's lanes
+    static DYNBVH_ALWAYS_INLINE D widen(F x) noexcept { return _mm256_cvtps_pd(x); }
+    static DYNBVH_ALWAYS_INLINE F narrow(D x) noexcept { return _mm256_cvtpd_ps(x); }
+    static DYNBVH_ALWAYS_INLINE F fsub(F a, F b) noexcept { return _mm_sub_ps(a, b); }
+    static DYNBVH_ALWAYS_INLINE D set1(double x) noexcept { return _mm256_set1_pd(x); }
+    static DYNBVH_ALWAYS_INLINE D add(D a, D b) noexcept { return _mm256_add_pd(a, b); }
+    static DYNBVH_ALWAYS_INLINE D sub(D a, D b) noexcept { return _mm256_sub_pd(a, b); }
+    static DYNBVH_ALWAYS_INLINE D mul(D a, D b) noexcept { return _mm256_mul_pd(a, b); }
+    static DYNBVH_ALWAYS_INLINE D div(D a, D b) noexcept { return _mm256_div_pd(a, b); }
+    static DYNBVH_ALWAYS_INLINE D absmul(D a, D b) noexcept {
+        return _mm256_and_pd(_mm256_mul_pd(a, b), _mm256_castsi256_pd(_mm256_set1_epi64x(0x7fffffffffffffffLL)));
+    }
+    template <int C>
+    static DYNBVH_ALWAYS_INLINE M cmp(D a, D b) noexcept { return _mm256_cmp_pd(a, b, C); }
+    static DYNBVH_ALWAYS_INLINE M band(M a, M b) noexcept { return _mm256_and_pd(a, b); }
+    static DYNBVH_ALWAYS_INLINE M bor(M a, M b) noexcept { return _mm256_or_pd(a, b); }
+    static DYNBVH_ALWAYS_INLINE unsigned bits(M m) noexcept { return unsigned(_mm256_movemask_pd(m)); }
+    static DYNBVH_ALWAYS_INLINE D blend(M m, D a, D b) noexcept { return _mm256_blendv_pd(b, a, m); }   // a where m
+    static DYNBVH_ALWAYS_INLINE unsigned in_range(F t, F lo, F hi) noexcept {
+        return unsigned(_mm_movemask_ps(_mm_and_ps(_mm_cmpge_ps(t, lo), _mm_cmple_ps(t, hi))));
+    }
+    static DYNBVH_ALWAYS_INLINE void store(float* p, F x) noexcept { _mm_store_ps(p, x); }
+    static DYNBVH_ALWAYS_INLINE F plus_zero(F x) noexcept { return _mm_add_ps(x, _mm_setzero_ps()); }
+};
+#if defined(DYNBVH_AVX512)
+/// Eight lanes of the exact test: float steps in AVX, double steps in AVX-512 (zero-masked conversions:
+/// see half8).
+struct ExactLanes8 {
+    using F = __m256;
+    using D = __m512d;
+    using M = __mmask8;
+    static DYNBVH_ALWAYS_INLINE D widen(F x) noexcept { return _mm512_maskz_cvtps_pd(__mmask8(0xff), x); }
+    static DYNBVH_ALWAYS_INLINE F narrow(D x) noexcept { return _mm512_maskz_cvtpd_ps(__mmask8(0xff), x); }
+    static DYNBVH_ALWAYS_INLINE F fsub(F a, F b) noexcept { return _mm256_sub_ps(a, b); }
+    static DYNBVH_ALWAYS_INLINE D set1(double x) noexcept { return _mm512_set1_pd(x); }
+    static DYNBVH_ALWAYS_INLINE D add(D a, D b) noexcept { return _mm512_add_pd(a, b); }
+    static DYNBVH_ALWAYS_INLINE D sub(D a, D b) noexcept { return _mm512_sub_pd(a, b); }
+    static DYNBVH_ALWAYS_INLINE D mul(D a, D b) noexcept { return _mm512_mul_pd(a, b); }
+    static DYNBVH_ALWAYS_INLINE D div(D a, D b) noexcept { return _mm512_div_pd(a, b); }
+    static DYNBVH_ALWAYS_INLINE D absmul(D a, D b) noexcept {
+        return _mm512_castsi512_pd(_mm512_and_si512(_mm512_castpd_si512(_mm512_mul_pd(a, b)), _mm512_set1_epi64(0x7fffffffffffffffLL)));
+    }
+    template <int C>
+    static DYNBVH_ALWAYS_INLINE M cmp(D a, D b) noexcept { return _mm512_cmp_pd_mask(a, b, C); }
+    static DYNBVH_ALWAYS_INLINE M band(M a, M b) noexcept { return M(a & b); }
+    static DYNBVH_ALWAYS_INLINE M bor(M a, M b) noexcept { return M(a | b); }
+    static DYNBVH_ALWAYS_INLINE unsigned bits(M m) noexcept { return unsigned(m); }
+    static DYNBVH_ALWAYS_INLINE D blend(M m, D a, D b) noexcept { return _mm512_mask_blend_pd(m, b, a); }   // a where m
+    static DYNBVH_ALWAYS_INLINE unsigned in_range(F t, F lo, F hi) noexcept {
+        return unsigned(_mm256_movemask_ps(_mm256_and_ps(_mm256_cmp_ps(t, lo, _CMP_GE_OQ), _mm256_cmp_ps(t, hi, _CMP_LE_OQ))));
+    }
+    static DYNBVH_ALWAYS_INLINE void store(float* p, F x) noexcept { _mm256_store_ps(p, x); }
+    static DYNBVH_ALWAYS_INLINE F plus_zero(F x) noexcept { return _mm256_add_ps(x, _mm256_setzero_ps()); }
+};
+#endif
+
+/// tri::watertight::test on the lanes of E at once: lane j's ray has origin (OX, OY, OZ) along kx, ky,
+/// kz, shear SX, SY (float) and SXD, SYD, 1 / dir[kz] RCPD (double), interval [TMIN, TMAX], and its
+/// triangle the vertices (px[i], py[i], pz[i]) along kx, ky, kz. The scalar test's operations in the same
+/// order (the fused ones fused alike, sub_mul etc.), so each lane's hit or miss and t, u, v are the
+/// scalar test's bits. Bit j of the result: lane j hits within [TMIN, TMAX]; its t, u, v are in t[j],
+/// u[j], v[j] (arrays of E's lanes, aligned to them).
+template <class E, class F = typename E::F, class D = typename E::D>
+DYNBVH_ALWAYS_INLINE unsigned exact_lanes(const F (&px)[3], const F (&py)[3], const F (&pz)[3], F OX, F OY, F OZ, F SX, F SY, D SXD, D SYD,
+                                          D RCPD, F TMIN, F TMAX, float* t, float* u, float* v) noexcept {
+    // float: vertex - origin, sheared (tri::watertight's test_axes), in double
+    D xf[3], yf[3];
+    for (int i = 0; i < 3; ++i) {
+        const F VZ = E::fsub(pz[i], OZ);
+        xf[i] = E::widen(sub_mul(E::fsub(px[i], OX), SX, VZ));
+        yf[i] = E::widen(sub_mul(E::fsub(py[i], OY), SY, VZ));
+    }
+    // double edge functions of the float vertices (exact products), the sign decision
+    const D eu = E::sub(E::mul(xf[2], yf[1]), E::mul(yf[2], xf[1]));
+    const D ev = E::sub(E::mul(xf[0], yf[2]), E::mul(yf[0], xf[2]));
+    const D ew = E::sub(E::mul(xf[1], yf[0]), E::mul(yf[1], xf[0]));
+    const D zero = E::set1(0.0);
+    const auto pos = E::band(E::band(E::template cmp<_CMP_GE_OQ>(eu, zero), E::template cmp<_CMP_GE_OQ>(ev, zero)),
+                             E::template cmp<_CMP_GE_OQ>(ew, zero));
+    const auto neg = E::band(E::band(E::template cmp<_CMP_LE_OQ>(eu, zero), E::template cmp<_CMP_LE_OQ>(ev, zero)),
+                             E::template cmp<_CMP_LE_OQ>(ew, zero));
+    const D det = E::add(E::add(eu, ev), ew);
+    const auto ok = E::band(E::bor(pos, neg), E::template cmp<_CMP_NEQ_OQ>(det, zero));
+    if (E::bits(ok) == 0) return 0;
+    // finish: the accurate evaluation in double (tri::watertight::finish)
+    const D one = E::set1(1.0);
+    const D sg = E::blend(E::template cmp<_CMP_GT_OQ>(det, zero), one, E::set1(-1.0));
+    const D DX = E::widen(OX), DY = E::widen(OY), DZ = E::widen(OZ);
+    D xd[3], yd[3], zd[3];
+    for (int i = 0; i < 3; ++i) {
+        zd[i] = E::sub(E::widen(pz[i]), DZ);
+        xd[i] = sub_mul(E::sub(E::widen(px[i]), DX), SXD, zd[i]);
+        yd[i] = sub_mul(E::sub(E::widen(py[i]), DY), SYD, zd[i]);
+    }
+    D w0 = E::mul(sg, mul_sub_mul(xd[2], yd[1], yd[2], xd[1]));
+    D w1 = E::mul(sg, mul_sub_mul(xd[0], yd[2], yd[0], xd[2]));
+    D w2 = E::mul(sg, mul_sub_mul(xd[1], yd[0], yd[1], xd[0]));
+    D sum = E::add(E::add(w0, w1), w2);
+    D nsum = E::add(E::absmul(xd[2], yd[1]), E::absmul(yd[2], xd[1]));
+    nsum = E::add(nsum, E::absmul(xd[0], yd[2]));
+    nsum = E::add(nsum, E::absmul(yd[0], xd[2]));
+    nsum = E::add(nsum, E::absmul(xd[1], yd[0]));
+    nsum = E::add(nsum, E::absmul(yd[1], xd[0]));
+    const D noise = E::mul(E::set1(0x1p-48), nsum);
+    const auto good = E::band(E::band(E::template cmp<_CMP_GE_OQ>(w0, zero), E::template cmp<_CMP_GE_OQ>(w1, zero)),
+                              E::band(E::template cmp<_CMP_GE_OQ>(w2, zero), E::template cmp<_CMP_GT_OQ>(sum, noise)));
+    // where the accurate weights are not trusted: the decision's own
+    w0 = E::blend(good, w0, E::mul(sg, eu));
+    w1 = E::blend(good, w1, E::mul(sg, ev));
+    w2 = E::blend(good, w2, E::mul(sg, ew));
+    sum = E::blend(good, sum, E::mul(sg, det));
+    const D inv = E::div(one, sum);
+    const D num = dot3(w0, zd[0], w1, zd[1], w2, zd[2]);
+    const F tt = E::narrow(E::mul(E::mul(num, RCPD), inv));
+    const unsigned in = E::in_range(tt, TMIN, TMAX);
+    E::store(t, E::plus_zero(tt));   // -0 -> +0
+    E::store(u, E::narrow(E::mul(w1, inv)));
+    E::store(v, E::narrow(E::mul(w2, inv)));
+    return in & E::bits(ok);
+}
+#endif
+
+#if defined(DYNBVH_AVX512)
 /// The lanes of a packet of N rays: one AVX-512 step for 16, else AVX (or SSE) steps.
 template <int N>
 using packet_lanes = std::conditional_t<N % 16 == 0, Lanes16, lanes_for<8>>;
@@ -734,67 +863,15 @@ struct PacketTraversal {
     template <class Src>
     DYNBVH_ALWAYS_INLINE std::uint32_t exact4(const Src& src, int o, float* t4, float* u4, float* v4) const noexcept {
         const std::size_t X = std::size_t(kx), Y = std::size_t(ky), Z = std::size_t(kz);
-        const __m128 OX = _mm_loadu_ps(okx + o), OY = _mm_loadu_ps(oky + o), OZ = _mm_loadu_ps(okz + o);
-        const __m128 SX = _mm_loadu_ps(sx + o), SY = _mm_loadu_ps(sy + o);
-        // float: vertex - origin, sheared (tri::watertight's test_axes)
-        __m256d xf[3], yf[3];   // sheared float vertices, in double
+        __m128 px[3], py[3], pz[3];
         for (int i = 0; i < 3; ++i) {
-            const __m128 VX = _mm_sub_ps(_mm_set1_ps(src.c(i, X)), OX), VY = _mm_sub_ps(_mm_set1_ps(src.c(i, Y)), OY);
-            const __m128 VZ = _mm_sub_ps(_mm_set1_ps(src.c(i, Z)), OZ);
-            xf[i] = _mm256_cvtps_pd(sub_mul(VX, SX, VZ));
-            yf[i] = _mm256_cvtps_pd(sub_mul(VY, SY, VZ));
+            px[i] = _mm_set1_ps(src.c(i, X));
+            py[i] = _mm_set1_ps(src.c(i, Y));
+            pz[i] = _mm_set1_ps(src.c(i, Z));
         }
-        // double edge functions of the float vertices (exact products), the sign decision
-        const __m256d eu = _mm256_sub_pd(_mm256_mul_pd(xf[2], yf[1]), _mm256_mul_pd(yf[2], xf[1]));
-        const __m256d ev = _mm256_sub_pd(_mm256_mul_pd(xf[0], yf[2]), _mm256_mul_pd(yf[0], xf[2]));
-        const __m256d ew = _mm256_sub_pd(_mm256_mul_pd(xf[1], yf[0]), _mm256_mul_pd(yf[1], xf[0]));
-        const __m256d zero = _mm256_setzero_pd();
-        const __m256d pos = _mm256_and_pd(_mm256_and_pd(_mm256_cmp_pd(eu, zero, _CMP_GE_OQ), _mm256_cmp_pd(ev, zero, _CMP_GE_OQ)),
-                                          _mm256_cmp_pd(ew, zero, _CMP_GE_OQ));
-        const __m256d neg = _mm256_and_pd(_mm256_and_pd(_mm256_cmp_pd(eu, zero, _CMP_LE_OQ), _mm256_cmp_pd(ev, zero, _CMP_LE_OQ)),
-                                          _mm256_cmp_pd(ew, zero, _CMP_LE_OQ));
-        const __m256d det = _mm256_add_pd(_mm256_add_pd(eu, ev), ew);
-        const __m256d ok = _mm256_and_pd(_mm256_or_pd(pos, neg), _mm256_cmp_pd(det, zero, _CMP_NEQ_OQ));
-        if (_mm256_movemask_pd(ok) == 0) return 0;
-        // finish: the accurate evaluation in double (tri::watertight::finish)
-        const __m256d one = _mm256_set1_pd(1.0);
-        const __m256d sg = _mm256_blendv_pd(_mm256_set1_pd(-1.0), one, _mm256_cmp_pd(det, zero, _CMP_GT_OQ));
-        const __m256d DX = _mm256_cvtps_pd(OX), DY = _mm256_cvtps_pd(OY), DZ = _mm256_cvtps_pd(OZ);
-        const __m256d SXD = _mm256_load_pd(sxd + o), SYD = _mm256_load_pd(syd + o);
-        __m256d xd[3], yd[3], zd[3];
-        for (int i = 0; i < 3; ++i) {
-            zd[i] = _mm256_sub_pd(_mm256_set1_pd(double(src.c(i, Z))), DZ);
-            xd[i] = sub_mul(_mm256_sub_pd(_mm256_set1_pd(double(src.c(i, X))), DX), SXD, zd[i]);
-            yd[i] = sub_mul(_mm256_sub_pd(_mm256_set1_pd(double(src.c(i, Y))), DY), SYD, zd[i]);
-        }
-        __m256d w0 = _mm256_mul_pd(sg, mul_sub_mul(xd[2], yd[1], yd[2], xd[1]));
-        __m256d w1 = _mm256_mul_pd(sg, mul_sub_mul(xd[0], yd[2], yd[0], xd[2]));
-        __m256d w2 = _mm256_mul_pd(sg, mul_sub_mul(xd[1], yd[0], yd[1], xd[0]));
-        __m256d sum = _mm256_add_pd(_mm256_add_pd(w0, w1), w2);
-        const __m256d absm = _mm256_castsi256_pd(_mm256_set1_epi64x(0x7fffffffffffffffLL));
-        const auto absmul = [&](__m256d a, __m256d b) { return _mm256_and_pd(_mm256_mul_pd(a, b), absm); };
-        __m256d nsum = _mm256_add_pd(absmul(xd[2], yd[1]), absmul(yd[2], xd[1]));
-        nsum = _mm256_add_pd(nsum, absmul(xd[0], yd[2]));
-        nsum = _mm256_add_pd(nsum, absmul(yd[0], xd[2]));
-        nsum = _mm256_add_pd(nsum, absmul(xd[1], yd[0]));
-        nsum = _mm256_add_pd(nsum, absmul(yd[1], xd[0]));
-        const __m256d noise = _mm256_mul_pd(_mm256_set1_pd(0x1p-48), nsum);
-        const __m256d good = _mm256_and_pd(
-            _mm256_and_pd(_mm256_cmp_pd(w0, zero, _CMP_GE_OQ), _mm256_cmp_pd(w1, zero, _CMP_GE_OQ)),
-            _mm256_and_pd(_mm256_cmp_pd(w2, zero, _CMP_GE_OQ), _mm256_cmp_pd(sum, noise, _CMP_GT_OQ)));
-        // where the accurate weights are not trusted: the decision's own
-        w0 = _mm256_blendv_pd(_mm256_mul_pd(sg, eu), w0, good);
-        w1 = _mm256_blendv_pd(_mm256_mul_pd(sg, ev), w1, good);
-        w2 = _mm256_blendv_pd(_mm256_mul_pd(sg, ew), w2, good);
-        sum = _mm256_blendv_pd(_mm256_mul_pd(sg, det), sum, good);
-        const __m256d inv = _mm256_div_pd(one, sum);
-        const __m256d num = dot3(w0, zd[0], w1, zd[1], w2, zd[2]);
-        const __m128 tt = _mm256_cvtpd_ps(_mm256_mul_pd(_mm256_mul_pd(num, _mm256_load_pd(rcpd + o)), inv));
-        const __m128 in = _mm_and_ps(_mm_cmpge_ps(tt, _mm_loadu_ps(tmin + o)), _mm_cmple_ps(tt, _mm_loadu_ps(tmax + o)));
-        _mm_store_ps(t4, _mm_add_ps(tt, _mm_setzero_ps()));   // -0 -> +0
-        _mm_store_ps(u4, _mm256_cvtpd_ps(_mm256_mul_pd(w1, inv)));
-        _mm_store_ps(v4, _mm256_cvtpd_ps(_mm256_mul_pd(w2, inv)));
-        return unsigned(_mm_movemask_ps(in)) & unsigned(_mm256_movemask_pd(ok));
+        return exact_lanes<ExactLanes4>(px, py, pz, _mm_loadu_ps(okx + o), _mm_loadu_ps(oky + o), _mm_loadu_ps(okz + o), _mm_loadu_ps(sx + o),
+                                        _mm_loadu_ps(sy + o), _mm256_load_pd(sxd + o), _mm256_load_pd(syd + o), _mm256_load_pd(rcpd + o),
+                                        _mm_loadu_ps(tmin + o), _mm_loadu_ps(tmax + o), t4, u4, v4);
     }
 #endif
 
@@ -822,66 +899,8 @@ struct PacketTraversal {
         const auto g32 = [&](const float* p) { return half8<0>(_mm512_maskz_permutexvar_ps(__mmask16(0xffff), at, _mm512_loadu_ps(p + o))); };
         const __m512i at64 = _mm512_maskz_cvtepu32_epi64(__mmask8(0xff), _mm256_castps_si256(half8<0>(_mm512_castsi512_ps(at))));
         const auto g64 = [&](const double* p) { return _mm512_permutex2var_pd(_mm512_loadu_pd(p + o), at64, _mm512_loadu_pd(p + o + 8)); };
-        const __m256 OX = g32(okx), OY = g32(oky), OZ = g32(okz), SX = g32(sx), SY = g32(sy);
-        // float: vertex - origin, sheared (tri::watertight's test_axes)
-        __m512d xf[3], yf[3];
-        for (int i = 0; i < 3; ++i) {
-            const __m256 VX = _mm256_sub_ps(px[i], OX), VY = _mm256_sub_ps(py[i], OY), VZ = _mm256_sub_ps(pz[i], OZ);
-            xf[i] = _mm512_maskz_cvtps_pd(__mmask8(0xff), sub_mul(VX, SX, VZ));
-            yf[i] = _mm512_maskz_cvtps_pd(__mmask8(0xff), sub_mul(VY, SY, VZ));
-        }
-        // double edge functions of the float vertices (exact products), the sign decision
-        const __m512d eu = _mm512_sub_pd(_mm512_mul_pd(xf[2], yf[1]), _mm512_mul_pd(yf[2], xf[1]));
-        const __m512d ev = _mm512_sub_pd(_mm512_mul_pd(xf[0], yf[2]), _mm512_mul_pd(yf[0], xf[2]));
-        const __m512d ew = _mm512_sub_pd(_mm512_mul_pd(xf[1], yf[0]), _mm512_mul_pd(yf[1], xf[0]));
-        const __m512d zero = _mm512_setzero_pd();
-        const __mmask8 pos = __mmask8(_mm512_cmp_pd_mask(eu, zero, _CMP_GE_OQ) & _mm512_cmp_pd_mask(ev, zero, _CMP_GE_OQ) &
-                                      _mm512_cmp_pd_mask(ew, zero, _CMP_GE_OQ));
-        const __mmask8 neg = __mmask8(_mm512_cmp_pd_mask(eu, zero, _CMP_LE_OQ) & _mm512_cmp_pd_mask(ev, zero, _CMP_LE_OQ) &
-                                      _mm512_cmp_pd_mask(ew, zero, _CMP_LE_OQ));
-        const __m512d det = _mm512_add_pd(_mm512_add_pd(eu, ev), ew);
-        const __mmask8 ok = __mmask8((pos | neg) & _mm512_cmp_pd_mask(det, zero, _CMP_NEQ_OQ));
-        if (ok == 0) return 0;
-        // finish: the accurate evaluation in double (tri::watertight::finish)
-        const __m512d one = _mm512_set1_pd(1.0);
-        const __m512d sg = _mm512_mask_blend_pd(_mm512_cmp_pd_mask(det, zero, _CMP_GT_OQ), _mm512_set1_pd(-1.0), one);
-        const __m512d DX = _mm512_maskz_cvtps_pd(__mmask8(0xff), OX), DY = _mm512_maskz_cvtps_pd(__mmask8(0xff), OY), DZ = _mm512_maskz_cvtps_pd(__mmask8(0xff), OZ);
-        const __m512d SXD = g64(sxd), SYD = g64(syd);
-        __m512d xd[3], yd[3], zd[3];
-        for (int i = 0; i < 3; ++i) {
-            const auto wide = [](__m256 x) { return _mm512_maskz_cvtps_pd(__mmask8(0xff), x); };
-            zd[i] = _mm512_sub_pd(wide(pz[i]), DZ);
-            xd[i] = sub_mul(_mm512_sub_pd(wide(px[i]), DX), SXD, zd[i]);
-            yd[i] = sub_mul(_mm512_sub_pd(wide(py[i]), DY), SYD, zd[i]);
-        }
-        __m512d w0 = _mm512_mul_pd(sg, mul_sub_mul(xd[2], yd[1], yd[2], xd[1]));
-        __m512d w1 = _mm512_mul_pd(sg, mul_sub_mul(xd[0], yd[2], yd[0], xd[2]));
-        __m512d w2 = _mm512_mul_pd(sg, mul_sub_mul(xd[1], yd[0], yd[1], xd[0]));
-        __m512d sum = _mm512_add_pd(_mm512_add_pd(w0, w1), w2);
-        const auto absmul = [](__m512d a, __m512d b) {
-            return _mm512_castsi512_pd(_mm512_and_si512(_mm512_castpd_si512(_mm512_mul_pd(a, b)), _mm512_set1_epi64(0x7fffffffffffffffLL)));
-        };
-        __m512d nsum = _mm512_add_pd(absmul(xd[2], yd[1]), absmul(yd[2], xd[1]));
-        nsum = _mm512_add_pd(nsum, absmul(xd[0], yd[2]));
-        nsum = _mm512_add_pd(nsum, absmul(yd[0], xd[2]));
-        nsum = _mm512_add_pd(nsum, absmul(xd[1], yd[0]));
-        nsum = _mm512_add_pd(nsum, absmul(yd[1], xd[0]));
-        const __m512d noise = _mm512_mul_pd(_mm512_set1_pd(0x1p-48), nsum);
-        const __mmask8 good = __mmask8(_mm512_cmp_pd_mask(w0, zero, _CMP_GE_OQ) & _mm512_cmp_pd_mask(w1, zero, _CMP_GE_OQ) &
-                                       _mm512_cmp_pd_mask(w2, zero, _CMP_GE_OQ) & _mm512_cmp_pd_mask(sum, noise, _CMP_GT_OQ));
-        // where the accurate weights are not trusted: the decision's own
-        w0 = _mm512_mask_blend_pd(good, _mm512_mul_pd(sg, eu), w0);
-        w1 = _mm512_mask_blend_pd(good, _mm512_mul_pd(sg, ev), w1);
-        w2 = _mm512_mask_blend_pd(good, _mm512_mul_pd(sg, ew), w2);
-        sum = _mm512_mask_blend_pd(good, _mm512_mul_pd(sg, det), sum);
-        const __m512d inv = _mm512_div_pd(one, sum);
-        const __m512d num = dot3(w0, zd[0], w1, zd[1], w2, zd[2]);
-        const __m256 tt = _mm512_maskz_cvtpd_ps(__mmask8(0xff), _mm512_mul_pd(_mm512_mul_pd(num, g64(rcpd)), inv));
-        const __m256 in = _mm256_and_ps(_mm256_cmp_ps(tt, g32(tmin), _CMP_GE_OQ), _mm256_cmp_ps(tt, g32(tmax), _CMP_LE_OQ));
-        _mm256_store_ps(t8, _mm256_add_ps(tt, _mm256_setzero_ps()));   // -0 -> +0
-        _mm256_store_ps(u8, _mm512_maskz_cvtpd_ps(__mmask8(0xff), _mm512_mul_pd(w1, inv)));
-        _mm256_store_ps(v8, _mm512_maskz_cvtpd_ps(__mmask8(0xff), _mm512_mul_pd(w2, inv)));
-        return unsigned(_mm256_movemask_ps(in)) & unsigned(ok);
+        return exact_lanes<ExactLanes8>(px, py, pz, g32(okx), g32(oky), g32(okz), g32(sx), g32(sy), g64(sxd), g64(syd), g64(rcpd), g32(tmin),
+                                        g32(tmax), t8, u8, v8);
     }
 #endif
 
