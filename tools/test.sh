@@ -27,12 +27,3 @@ cmake -S . -B build/asan -DCMAKE_BUILD_TYPE=Debug -DCMAKE_CXX_FLAGS_DEBUG="-O0 -
 cmake --build build/asan -j"$jobs"
 (cd build/asan && ASAN_OPTIONS=detect_leaks=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
   DYNBVH_SANITIZED=1 ctest --output-on-failure -j"$jobs")
-
-echo "== this CPU's SIMD paths (packets, two-level) under AddressSanitizer + UndefinedBehaviorSanitizer =="
-# The build above is portable (SSE); the packet traversal's AVX / AVX-512 steps (gathers, compress stores,
-# stack blocks) are checked here with -march=native, on the two tests that exercise them.
-cmake -S . -B build/asan-native -DCMAKE_BUILD_TYPE=Debug -DCMAKE_CXX_FLAGS_DEBUG="-O1 -g1" -DDYNBVH_SANITIZE=ON -DDYNBVH_NATIVE=ON \
-  -DDYNBVH_BUILD_TESTS=ON -DDYNBVH_BUILD_BENCH=OFF -DDYNBVH_BUILD_EXAMPLES=OFF -DDYNBVH_WERROR=ON >/dev/null
-cmake --build build/asan-native -j"$jobs" --target test_packet test_instances
-(cd build/asan-native && ASAN_OPTIONS=detect_leaks=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
-  ctest --output-on-failure -j"$jobs" -R '^test_(packet|instances)$')
