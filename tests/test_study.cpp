@@ -212,19 +212,20 @@ TEST_CASE("study: auto (refit or rebuild) records its decisions, consistent with
     std::filesystem::remove_all(out);
     std::filesystem::create_directories(out);
     // rule=sah: th=0 rebuilds every frame; th=1e9 never rebuilds after the first frame; auto:lbvh with either
-    // is then exactly lbvh rebuilt every frame, or the study's refit (LBVH at frame 0, refitted): same SAH
-    // per frame. auto (rule=amortized) rebuilds exactly when its reported loss reaches its rebuild cost.
-    const int rc = run_study("--scenes n-body --scale 0.02 --frames 5 --builders lbvh,refit,ploc,auto,auto:rule=sah,"
+    // is then exactly lbvh rebuilt every frame, or the study's refit:lbvh (LBVH at frame 0, refitted): same SAH
+    // per frame; auto:th=1e9 likewise refit (PLOC at frame 0). auto (rule=amortized) rebuilds exactly when its
+    // reported loss reaches its rebuild cost.
+    const int rc = run_study("--scenes n-body --scale 0.02 --frames 5 --builders lbvh,refit,refit:lbvh,ploc,auto,auto:rule=sah,"
                              "auto:th=1.05:rule=sah,auto:lbvh:th=0:rule=sah,auto:lbvh:th=1e9:rule=sah,auto:async=1:rule=sah,"
-                             "auto:async=1 --res 32x24 --images 0 --threads 2 --no-warmup "
+                             "auto:async=1,auto:th=1e9:rule=sah --res 32x24 --images 0 --threads 2 --no-warmup "
                              "--out \"" + out.string() + "\"",
                              out / "log.txt");
     INFO(read_all(out / "log.txt"));
     REQUIRE(rc == 0);
     const Json j = Json::parse(read_all(out / "study.json"));
-    CHECK(j.at("builders") == Json::array({"lbvh", "refit", "ploc", "auto", "auto:rule=sah", "auto:th=1.05:rule=sah",
+    CHECK(j.at("builders") == Json::array({"lbvh", "refit", "refit:lbvh", "ploc", "auto", "auto:rule=sah", "auto:th=1.05:rule=sah",
                                            "auto:lbvh:th=0:rule=sah", "auto:lbvh:th=1e+09:rule=sah",
-                                           "auto:async=1:rule=sah", "auto:async=1"}));
+                                           "auto:async=1:rule=sah", "auto:async=1", "auto:th=1e+09:rule=sah"}));
     const auto group = [&](const std::string& b) -> const Json& {
         for (const auto& g : j.at("results"))
             if (g.at("builder") == b) return g;
@@ -233,7 +234,8 @@ TEST_CASE("study: auto (refit or rebuild) records its decisions, consistent with
     };
     const std::vector<std::pair<std::string, double>> autos = {
         {"auto", 1.3}, {"auto:rule=sah", 1.3}, {"auto:th=1.05:rule=sah", 1.05}, {"auto:lbvh:th=0:rule=sah", 0},
-        {"auto:lbvh:th=1e+09:rule=sah", 1e9}, {"auto:async=1:rule=sah", 1.3}, {"auto:async=1", 1.3}};
+        {"auto:lbvh:th=1e+09:rule=sah", 1e9}, {"auto:async=1:rule=sah", 1.3}, {"auto:async=1", 1.3},
+        {"auto:th=1e+09:rule=sah", 1e9}};
     const auto& hits_ref = group("ploc").at("per_frame");
     for (const auto& [name, th] : autos) {
         INFO(name);
@@ -307,6 +309,8 @@ TEST_CASE("study: auto (refit or rebuild) records its decisions, consistent with
               doctest::Approx(group("lbvh").at("per_frame").at(k).at("sah").get<double>()).epsilon(1e-12));
         if (k > 0) CHECK(group("auto:lbvh:th=1e+09:rule=sah").at("per_frame").at(k).at("decision") == "refit");
         CHECK(group("auto:lbvh:th=1e+09:rule=sah").at("per_frame").at(k).at("sah").get<double>() ==
+              doctest::Approx(group("refit:lbvh").at("per_frame").at(k).at("sah").get<double>()).epsilon(1e-12));
+        CHECK(group("auto:th=1e+09:rule=sah").at("per_frame").at(k).at("sah").get<double>() ==
               doctest::Approx(group("refit").at("per_frame").at(k).at("sah").get<double>()).epsilon(1e-12));
     }
     // Per-frame builders have no decisions.
@@ -325,8 +329,8 @@ TEST_CASE("study: auto (refit or rebuild) records its decisions, consistent with
         if (line.find(",auto") != std::string::npos) rebuild_rows += line.find(",rebuild,") != std::string::npos;
         else plain_rows += line.ends_with(",,,,,,,");
     }
-    CHECK(rebuild_rows >= 5 + 6);   // auto:lbvh:th=0 every frame, every other strategy at frame 0
-    CHECK(plain_rows == 3 * 5);
+    CHECK(rebuild_rows >= 5 + 7);   // auto:lbvh:th=0 every frame, every other strategy at frame 0
+    CHECK(plain_rows == 4 * 5);   // lbvh, refit, refit:lbvh, ploc
     // The report: the strategies table and a frame-time-per-frame plot with every builder.
     const std::string report = read_all(out / "report.md");
     CHECK(report.find("## Strategies") != std::string::npos);
@@ -450,6 +454,8 @@ TEST_CASE("study: bad input fails with a message naming it") {
     CHECK(read_all(out / "log6.txt").find("th must be") != std::string::npos);
     CHECK(run_study("--builders two-level:wide=4 --out \"" + out.string() + "\"", out / "log8.txt") != 0);
     CHECK(read_all(out / "log8.txt").find("wide") != std::string::npos);
+    CHECK(run_study("--builders refit:lbvh:r=8 --out \"" + out.string() + "\"", out / "log10.txt") != 0);
+    CHECK(read_all(out / "log10.txt").find("no knob 'r'") != std::string::npos);
     CHECK(run_study("--builders ploc:th=2 --out \"" + out.string() + "\"", out / "log7.txt") != 0);
     CHECK(read_all(out / "log7.txt").find("th") != std::string::npos);
     CHECK(run_study("--res 640by480", out / "log3.txt") == 2);

@@ -64,10 +64,21 @@ public:
     void build(std::span<const Trianglef> tris) override {
         previous_ = std::move(current_);   // freed untimed in release_previous()
         report_ = dyn_.update(tris);
-        // The traced tree: a wide copy of the policy's tree (its leaf part is copied: the policy keeps its
-        // own for the next refit), or for wide=0 a copy of the binary tree itself.
-        if (spec_.wide == 4) current_.wide4 = make_wide<4>(dyn_.bvh(), ex_);
-        else if (spec_.wide == 8) current_.wide8 = make_wide<8>(dyn_.bvh(), ex_);
+        // The traced tree: a wide copy of the policy's tree, or for wide=0 a copy of the binary tree itself.
+        // Its leaf part is copied after a rebuild or swap (the policy keeps its own for the next refit);
+        // after a refit the references are unchanged, so the previous wide tree's leaf part is taken over.
+        const bool same_refs = report_.decision == Decision::refit;
+        const auto wide_of = [&]<int W>(auto& wide, auto& before) {
+            if (!same_refs || before.empty()) {
+                wide = make_wide<W>(dyn_.bvh(), ex_);
+                return;
+            }
+            wide = {};
+            wide.leaves() = std::move(before.leaves());
+            dynbvh::detail::collapse_to_wide<W>(dyn_.bvh(), wide, ex_);
+        };
+        if (spec_.wide == 4) wide_of.template operator()<4>(current_.wide4, previous_.wide4);
+        else if (spec_.wide == 8) wide_of.template operator()<8>(current_.wide8, previous_.wide8);
         else current_.bvh = dyn_.bvh();
     }
     void release_previous() override { previous_ = Trees{}; }

@@ -135,7 +135,7 @@ std::string BuilderSpec::base() const {
 std::string BuilderSpec::name() const {
     const BuilderSpec d{.kind = kind, .blocks = default_blocks_of(kind)};
     std::string s = base();
-    if ((kind == Kind::dynamic || kind == Kind::two_level) && over == Kind::lbvh) s += ":lbvh";
+    if ((kind == Kind::dynamic || kind == Kind::two_level || kind == Kind::refit) && over == Kind::lbvh) s += ":lbvh";
     if (radius != d.radius) s += ":r=" + std::to_string(radius);
     if (beta != d.beta) s += ":beta=" + fmt_float(beta);
     if (morton_bits != d.morton_bits) s += ":bits=" + std::to_string(morton_bits);
@@ -178,13 +178,18 @@ BuilderSpec parse_builder(const std::string& spec) {
         throw std::invalid_argument(msg);
     }
     const bool ours = !b.is_embree();
-    const bool uses_radius = b.kind == Kind::ploc || b.kind == Kind::kbvh;
+    bool uses_radius = b.kind == Kind::ploc || b.kind == Kind::kbvh || b.kind == Kind::refit;
     const bool uses_bits = b.kind == Kind::ploc || b.kind == Kind::kbvh || b.kind == Kind::lbvh || b.kind == Kind::refit ||
                            b.kind == Kind::morton_wide;
     b.blocks = BuilderSpec::default_blocks_of(b.kind);
     for (std::size_t i = 1; i < parts.size(); ++i) {
         if (b.kind == Kind::dynamic && parse_dynamic_knob(b, spec, parts[i], i)) continue;
         if (b.kind == Kind::two_level && parse_two_level_knob(b, spec, parts[i], i)) continue;
+        if (b.kind == Kind::refit && i == 1 && (parts[i] == "ploc" || parts[i] == "lbvh")) {   // refit's builder: "refit:lbvh"
+            b.over = parts[i] == "lbvh" ? Kind::lbvh : Kind::ploc;
+            uses_radius = b.over == Kind::ploc;
+            continue;
+        }
         const auto eq = parts[i].find('=');
         if (eq == std::string::npos) throw std::invalid_argument("builder '" + spec + "': knob '" + parts[i] + "' is not key=value");
         const std::string key = parts[i].substr(0, eq), v = parts[i].substr(eq + 1);

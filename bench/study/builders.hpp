@@ -56,7 +56,7 @@ struct BuilderSpec {
     bool blocks = default_blocks;  ///< wide tree with leaves in SIMD triangle blocks of `wide` lanes, the binary
                                    ///< tree built with block_leaves (wide_blocks.hpp); needs wide=4 or 8
                                    ///< (morton-wide: on by default, see default_blocks_of)
-    Kind over = Kind::ploc;        ///< auto, two-level: the builder its (re)builds use (ploc or lbvh: "auto:lbvh")
+    Kind over = Kind::ploc;        ///< auto, two-level, refit: the builder its (re)builds use (ploc or lbvh: "auto:lbvh", "refit:lbvh")
     double threshold = 1.3;        ///< auto: rebuild past this many times the last rebuild's SAH ("th=1.5")
     bool async = false;            ///< auto: rebuild on a background thread, swap when ready ("async=1")
     bool amortized = true;         ///< auto: Dynamic's amortized rule, fed each frame's trace time ("rule=sah": the threshold)

@@ -162,7 +162,12 @@ public:
                 if (!previous_.wide4.empty()) previous_.bvh.leaves() = std::move(previous_.wide4.leaves());
                 if (!previous_.wide8.empty()) previous_.bvh.leaves() = std::move(previous_.wide8.leaves());
                 if (previous_.bvh.empty() || previous_.bvh.primitive_count != tris.size()) {
-                    bvh = lbvh::build<Node<>, Prim>(tris, {.morton_bits = spec_.morton_bits, .leaves = leaves}, ex_);
+                    // the first frame (or a new triangle count): built by refit's builder, as auto's
+                    if (spec_.over == Kind::lbvh)
+                        bvh = lbvh::build<Node<>, Prim>(tris, {.morton_bits = spec_.morton_bits, .leaves = leaves}, ex_);
+                    else
+                        bvh = ploc::build<Node<>, Prim>(
+                            tris, {.radius = spec_.radius, .morton_bits = spec_.morton_bits, .leaves = leaves}, ex_);
                 } else {
                     bvh = std::move(previous_.bvh);
                     dynbvh::refit(bvh, tris, ex_);

@@ -54,7 +54,7 @@ const char* const footer = R"(Scenes (--scenes, comma separated; default: every 
   kitchen.aff                                             BART scene
 
 Builders (--builders, comma separated; default: all available)
-  lbvh, kbvh (presplit + PLOC), ploc (r = 5), binned-sah, refit (LBVH at frame 0, refitted after),
+  lbvh, kbvh (presplit + PLOC), ploc (r = 5), binned-sah, refit, refit:lbvh (PLOC or LBVH at frame 0, refitted after),
   morton-wide (the wide tree straight from the sorted Morton codes, leaves in SIMD triangle blocks; no
   binary tree, so no SAH column), embree-low, embree-medium, embree-refit (when built with Embree 3)
   auto, auto:lbvh (strategy dynbvh::Dynamic: refit each frame, rebuild with PLOC or LBVH once the trace time

@@ -92,7 +92,8 @@ enum class Reason : std::uint8_t {
     streak,        ///< rebuilt without refitting first: a run of rebuilds at every frame (see the file comment)
 };
 
-/// One frame's decision. SAHs are sah_cost values (sah.hpp, the policy's `cost`).
+/// One frame's decision. SAHs use the policy's `cost`: after a rebuild sah_cost's value (sah.hpp), after
+/// a refit refit_sah's (refit.hpp: the same formula, its terms summed in the refit's order).
 struct FrameReport {
     Decision decision = Decision::refit;   ///< what was done
     Reason reason = Reason::none;          ///< why
@@ -153,7 +154,8 @@ struct DynamicConfig {
 };
 
 /// Refit-or-rebuild policy over one triangle array that changes from frame to frame (see the file
-/// comment). update() costs a refit plus an SAH evaluation (O(nodes)), plus a build when it rebuilds
+/// comment). update() costs a refit that also sums the SAH (refit_sah: O(nodes + references), no second
+/// pass), plus a build and an SAH evaluation when it rebuilds
 /// synchronously; async adds a copy of the triangles when a rebuild starts.
 /// @tparam Builder builder policy (builder.hpp): builder::ploc (default), builder::lbvh, builder::binned_sah
 /// @tparam NodeT, Prim the tree's node layout and primitive policy (bvh.hpp)
@@ -301,66 +303,91 @@ private:
         const auto start = std::chrono::steady_clock::now();
         FrameReport r;
         r.frame = frame_++;
-        std::vector<std::uint32_t> bad = nonfinite_ids(tris);
-        if (!built_ || tris.size() != tree_.primitive_count || bad != excluded_ids_) {
-            r.reason = !built_ ? Reason::first_frame : tris.size() != tree_.primitive_count ? Reason::topology
-                                                                                              : Reason::finiteness;
+        // The set of non-finite triangles is looked up front unless the refit can tell: when the count
+        // is unchanged and the last build left nothing out, the tree references every triangle, so a
+        // refit reads them all and counts the non-finite ones (refit_sah) in the same pass.
+        const bool refit_reads_all = built_ && tris.size() == tree_.primitive_count && excluded_ids_.empty();
+        std::vector<std::uint32_t> bad;
+        if (!refit_reads_all) bad = nonfinite_ids(tris);
+        const auto rebuild_for = [&](Reason why) {
+            r.reason = why;
             drop_background();
             rebuild_now(tris, std::move(bad));
             r.decision = Decision::rebuild;
             streak_ = probes_ = 0;
+        };
+        // A refit that met a non-finite triangle: the set changed (none was left out before).
+        const auto became_nonfinite = [&](const RefitReport& rep) {
+            if (!refit_reads_all || rep.nonfinite == 0) return false;
+            bad = nonfinite_ids(tris);
+            r.sah_before = std::numeric_limits<double>::quiet_NaN();
+            rebuild_for(Reason::finiteness);
+            return true;
+        };
+        if (!built_ || tris.size() != tree_.primitive_count || (!refit_reads_all && bad != excluded_ids_)) {
+            rebuild_for(!built_ ? Reason::first_frame : tris.size() != tree_.primitive_count ? Reason::topology : Reason::finiteness);
         } else if (streaking()) {
             // Step: a run of rebuilds at every frame: rebuild without the refit the rule would waste.
-            rebuild_now(tris, std::move(bad));
-            r.decision = Decision::rebuild;
-            r.reason = Reason::streak;
-            if (amortizing()) {   // (what grown() reports under this rule)
-                r.rebuild_cost_ms = rebuild_cost();
-                r.trust = trust_;
+            if (refit_reads_all) bad = nonfinite_ids(tris);
+            if (bad != excluded_ids_) {
+                rebuild_for(Reason::finiteness);
+            } else {
+                rebuild_now(tris, std::move(bad));
+                r.decision = Decision::rebuild;
+                r.reason = Reason::streak;
+                if (amortizing()) {   // (what grown() reports under this rule)
+                    r.rebuild_cost_ms = rebuild_cost();
+                    r.trust = trust_;
+                }
+                ++probes_;
             }
-            ++probes_;
         } else if (std::optional<Job> job = take_finished(); job && job->excluded_ids == excluded_ids_) {
             // Step: swap in the background tree, refitted to this frame.
             r.sah_before = sah_;
             tree_ = std::move(job->tree);
-            refit(tree_, tris, ex_);
-            sah_rebuilt_ = job->sah;
-            sah_ = sah_cost(tree_, cfg_.cost, ex_);
-            build_ms_ = job->ms;
-            loss_ms_ = 0;
-            r.decision = Decision::swap;
-            FrameReport rule;
-            if (grown(rule)) start_background(tris, r);
-            r.reason = Reason::rebuild_ready;
-            r.rebuild_cost_ms = rebuild_cost();
+            const RefitReport rep = refit_sah(tree_, tris, cfg_.cost, ex_);
+            if (!became_nonfinite(rep)) {
+                sah_rebuilt_ = job->sah;
+                sah_ = rep.sah;
+                build_ms_ = job->ms;
+                loss_ms_ = 0;
+                r.decision = Decision::swap;
+                FrameReport rule;
+                if (grown(rule)) start_background(tris, r);
+                r.reason = Reason::rebuild_ready;
+                r.rebuild_cost_ms = rebuild_cost();
+            }
         } else {
-            // Step: refit, then apply the rule.
+            // Step: refit (with the SAH in the same passes), then apply the rule.
             const bool fresh = fresh_;
-            refit(tree_, tris, ex_);
+            const RefitReport rep = refit_sah(tree_, tris, cfg_.cost, ex_);
             fresh_ = false;
-            sah_ = sah_cost(tree_, cfg_.cost, ex_);
-            r.sah_before = sah_;
-            probes_ = 0;
-            const bool rebuild = grown(r);
-            streak_ = rebuild && fresh && clearly(r) && !cfg_.async ? streak_ + 1 : 0;
-            if (rebuild) {
-                if (cfg_.async) {
-                    if (!job_) start_background(tris, r);
-                    else r.reason = Reason::none;   // one is running already: keep refitting
-                } else {
-                    // What this frame's trace would take with the refitted tree, and with a fresh one
-                    // (by the SAH): checked against the measured time in record_trace_ms().
-                    const double refit_ms = trace_sah_ > 0 ? trace_ms_ * sah_ / trace_sah_ : 0;
-                    rebuild_now(tris, std::move(bad));
-                    r.decision = Decision::rebuild;
-                    if (r.reason == Reason::amortized) {
-                        check_ = true;
-                        check_refit_ms_ = refit_ms;
-                        check_fresh_ms_ = trace_ms_ * sah_ / trace_sah_;
+            if (!became_nonfinite(rep)) {
+                sah_ = rep.sah;
+                r.sah_before = sah_;
+                probes_ = 0;
+                const bool rebuild = grown(r);
+                streak_ = rebuild && fresh && clearly(r) && !cfg_.async ? streak_ + 1 : 0;
+                if (rebuild) {
+                    if (cfg_.async) {
+                        if (!job_) start_background(tris, r);
+                        else r.reason = Reason::none;   // one is running already: keep refitting
+                    } else {
+                        // What this frame's trace would take with the refitted tree, and with a fresh one
+                        // (by the SAH): checked against the measured time in record_trace_ms().
+                        const double refit_ms = trace_sah_ > 0 ? trace_ms_ * sah_ / trace_sah_ : 0;
+                        if (refit_reads_all) bad = excluded_ids_;   // (empty: the refit found every triangle finite)
+                        rebuild_now(tris, std::move(bad));
+                        r.decision = Decision::rebuild;
+                        if (r.reason == Reason::amortized) {
+                            check_ = true;
+                            check_refit_ms_ = refit_ms;
+                            check_fresh_ms_ = trace_ms_ * sah_ / trace_sah_;
+                        }
                     }
+                } else {
+                    r.reason = Reason::none;
                 }
-            } else {
-                r.reason = Reason::none;
             }
         }
         r.sah_after = sah_;

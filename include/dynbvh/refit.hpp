@@ -17,32 +17,67 @@
 #include "detail/scratch.hpp"
 #include "executor.hpp"
 #include "mesh.hpp"
+#include "sah.hpp"
 #include "wide.hpp"
 
 namespace dynbvh {
 
 namespace detail {
 
-/// The binary refit over any triangle source (a span or a MeshView): one code path.
-template <class NodeT, class Prim, class Source, class Exec>
-void refit_binary(Bvh<NodeT, Prim>& bvh, Source tris, const Exec& ex) {
+/// What a refit with sums measured (refit_binary<true>): the refitted tree's SAH sums and the number
+/// of triangles read that have a NaN or infinite vertex.
+struct RefitSums {
+    SahSums sah;
+    std::size_t nonfinite = 0;
+};
+
+/// The binary refit over any triangle source (a span or a MeshView): one code path. With `Sums`, the
+/// same passes also add up the refitted tree's SAH sums (leaf terms in the parallel leaf pass, inner
+/// terms in the serial sweep) and count the triangles read that have a NaN or infinite vertex: what
+/// refit_sah returns, at the cost of one area per node instead of a second pass over the tree.
+template <bool Sums = false, class NodeT, class Prim, class Source, class Exec>
+RefitSums refit_binary(Bvh<NodeT, Prim>& bvh, Source tris, const Exec& ex) {
     using T = typename NodeT::scalar_type;
     check_triangles(bvh, tris.size(), "refit");
-    if (bvh.empty()) return;
+    RefitSums out;
+    if (bvh.empty()) return out;
     if constexpr (Bvh<NodeT, Prim>::precomputed)
         ex.for_each(0, bvh.prim_ids.size(), [&](std::size_t s) { bvh.leaf_triangles[s] = tris[bvh.prim_ids[s]]; });
-    ex.for_each(0, bvh.nodes.size(), [&](std::size_t i) {
+    // Step 1: leaf boxes, in parallel (with Sums: their SAH terms and the non-finite triangles, reduced).
+    const auto leaf = [&](std::size_t i) {
         NodeT& node = bvh.nodes[i];
-        if (!node.is_leaf()) return;
+        RefitSums r;
+        if (!node.is_leaf()) return r;
         AABB<T> box;
-        for (std::size_t s = node.index; s < std::size_t(node.index) + node.count; ++s) box.extend(tris[bvh.prim_ids[s]].bounds());
+        for (std::size_t s = node.index; s < std::size_t(node.index) + node.count; ++s) {
+            const Triangle<T> t = tris[bvh.prim_ids[s]];
+            box.extend(t.bounds());
+            if constexpr (Sums) r.nonfinite += t.is_finite() ? 0u : 1u;
+        }
         node.set_bounds(box);
-    }, 4096);
+        if constexpr (Sums) {
+            r.sah.leaf = area(box) * double(node.count);
+            r.sah.refs = double(node.count);
+        }
+        return r;
+    };
+    if constexpr (Sums)
+        out = ex.reduce(std::size_t(0), bvh.nodes.size(), RefitSums{}, leaf, [](const RefitSums& a, const RefitSums& b) {
+            return RefitSums{SahSums::combine(a.sah, b.sah), a.nonfinite + b.nonfinite};
+        });
+    else
+        ex.for_each(0, bvh.nodes.size(), [&](std::size_t i) { leaf(i); }, 4096);
+    // Step 2: inner boxes, children first (they always follow their parent in the layout).
     for (std::size_t i = bvh.nodes.size(); i-- > 0;) {
         NodeT& node = bvh.nodes[i];
         if (node.is_leaf()) continue;
         node.set_bounds(merge(bvh.nodes[node.left()].bounds(), bvh.nodes[node.right()].bounds()));
+        if constexpr (Sums) {
+            out.sah.inner += area(node.bounds());
+            out.sah.inner_n += 1;
+        }
     }
+    return out;
 }
 
 /// The wide refit's box passes over `bvh.nodes`: every leaf slot k of node i gets leaf_box(node, k),
@@ -118,6 +153,43 @@ void refit(Bvh<NodeT, Prim>& bvh, std::span<const Triangle<typename NodeT::scala
 template <class NodeT, class Prim, class Index, class Exec = exec::default_executor>
 void refit(Bvh<NodeT, Prim>& bvh, const MeshView<typename NodeT::scalar_type, Index>& mesh, const Exec& ex = {}) {
     detail::refit_binary(bvh, mesh, ex);
+}
+
+/// What refit_sah measured.
+struct RefitReport {
+    /// SAH of the refitted tree: sah_cost's formula and cost (sah.hpp), its terms added in another
+    /// order (leaves by the executor's reduction, inner nodes in reverse layout order), so within a
+    /// relative 1e-12 of sah_cost(bvh, cost, ex), not always equal to its last bit.
+    double sah = 0;
+    /// Triangles the tree references that have a NaN or infinite vertex (their boxes are then not
+    /// finite either: a caller would rebuild, which leaves such triangles out).
+    std::size_t nonfinite = 0;
+};
+
+namespace detail {
+/// refit_sah's report from the refit's sums (sah_cost's formula, degenerate roots included).
+template <class NodeT, class Prim>
+RefitReport refit_report(const RefitSums& r, const Bvh<NodeT, Prim>& bvh, const SahCost& cost) noexcept {
+    return {bvh.empty() ? 0.0 : sah_from_sums(r.sah, area(bvh.nodes[0].bounds()), cost), r.nonfinite};
+}
+} // namespace detail
+
+/// refit(bvh, tris, ex) that also returns the refitted tree's SAH and counts the non-finite triangles
+/// it read, in the same passes: what a refit-or-rebuild policy needs each frame (dynamic.hpp), without
+/// a second pass over the tree for sah_cost. The same boxes as refit, bit for bit; same errors.
+/// O(nodes + references), the leaves in parallel, the inner nodes in one serial sweep.
+template <class NodeT, class Prim, class Exec = exec::default_executor>
+RefitReport refit_sah(Bvh<NodeT, Prim>& bvh, std::span<const Triangle<typename NodeT::scalar_type>> tris, const SahCost& cost = {},
+                      const Exec& ex = {}) {
+    return detail::refit_report(detail::refit_binary<true>(bvh, tris, ex), bvh, cost);
+}
+
+/// refit_sah from an indexed mesh read in place (mesh.hpp): the same boxes and report as from
+/// make_triangles' array. No allocation.
+template <class NodeT, class Prim, class Index, class Exec = exec::default_executor>
+RefitReport refit_sah(Bvh<NodeT, Prim>& bvh, const MeshView<typename NodeT::scalar_type, Index>& mesh, const SahCost& cost = {},
+                      const Exec& ex = {}) {
+    return detail::refit_report(detail::refit_binary<true>(bvh, mesh, ex), bvh, cost);
 }
 
 /// Recomputes all boxes of the wide tree `bvh` from `tris` in place (same contract as the binary refit:

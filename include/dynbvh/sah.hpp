@@ -34,6 +34,13 @@ struct SahSums {
     }
 };
 
+/// The SAH formula from a tree's sums and its root's area `root` (for a degenerate root, the
+/// formula's limit, see sah_cost(Bvh)).
+inline double sah_from_sums(const SahSums& s, double root, const SahCost& cfg) noexcept {
+    if (!(root > 0)) return cfg.ct * s.inner_n + cfg.ci * s.refs;
+    return (cfg.ct * s.inner + cfg.ci * s.leaf) / root;
+}
+
 /// The SAH formula over `nodes` (binary or wide): per_node(node)'s sums added up in parallel, divided
 /// by the root's area (or its limit for a degenerate root, see sah_cost(Bvh)). 0 for no nodes.
 template <class Nodes, class Exec, class PerNode>
@@ -42,9 +49,7 @@ double sah_of(const Nodes& nodes, const SahCost& cfg, const Exec& ex, const PerN
     const SahSums s = ex.reduce(
         std::size_t(0), nodes.size(), SahSums{}, [&](std::size_t i) { return per_node(nodes[i]); },
         [](const SahSums& a, const SahSums& b) { return SahSums::combine(a, b); });
-    const double root = area(nodes[0].bounds());
-    if (!(root > 0)) return cfg.ct * s.inner_n + cfg.ci * s.refs;
-    return (cfg.ct * s.inner + cfg.ci * s.leaf) / root;
+    return sah_from_sums(s, area(nodes[0].bounds()), cfg);
 }
 } // namespace detail
 
