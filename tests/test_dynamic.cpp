@@ -186,13 +186,18 @@ TEST_CASE("Dynamic: the amortized rule rebuilds exactly when the estimated trace
     constexpr double cost = 5.0;   // what a rebuild is taken to cost (ms): fixed, so the script is exact
     Dynamic<builder::ploc, Node<>, prim::indexed, exec::serial> dyn({.rule = RebuildRule::amortized, .rebuild_ms = cost}, ex);
     // Scripted trace times (ms) per frame, and the expectation recomputed independently: our own tree,
-    // refitted each frame; loss = trust * (sum over traced frames of T (1 - s_rebuilt / s), plus this
-    // frame's prediction T_prev * s / s_prev * (1 - s_rebuilt / s)); after each rebuild the first trace
-    // time moves trust halfway to the measured share of the predicted saving (clamped to [0, 1], >= 1/8).
-    const double trace_ms[] = {10, 12, 9, 30, 30, 4, 4, 50, 1, 1, 1, 20, 20, 20, 20, 20, 20, 20, 20, 20, 20, 20, 20, 20};
+    // refitted each frame; with scaled(T, a, b) = T (b / a)^e, loss = trust * (sum over traced frames of
+    // T - scaled(T, s, s_rebuilt), plus this frame's prediction for T' = scaled(T_prev, s_prev, s)); after
+    // each rebuild the first trace time moves trust halfway to the measured share of the predicted saving
+    // (clamped to [0, 1], >= 1/8); e (1 at first) is log(T / T1) / log(s / s1) against the first frame
+    // traced since the last rebuild once s >= 1.2 s1, clamped to [1/8, 1].
+    const double trace_ms[] = {10, 12, 9, 11.5, 30, 4, 4, 50, 1, 1, 1, 20, 20, 20, 20, 20, 20, 20, 20, 20, 20, 20, 20, 20};
     Bvh<> mine;
     double rebuilt_sah = 0, loss = 0, prev_ms = 0, prev_sah = 0, trust = 1, check_refit = 0, check_fresh = 0;
-    bool check = false;
+    double e = 1, first_ms = 0, first_sah = 0;
+    bool check = false, first_pending = false;
+    int measured_e = 0, clamped_e = 0;
+    const auto scaled = [&](double ms, double a, double b) { return e == 1.0 ? ms * b / a : ms * std::pow(b / a, e); };
     int rebuilds = 0, refits = 0, checks = 0, streaks = 0;
     StreakModel streak;
     for (int f = 0; f < 24; ++f) {
@@ -216,14 +221,16 @@ TEST_CASE("Dynamic: the amortized rule rebuilds exactly when the estimated trace
             CHECK(std::isnan(r.sah_before));
         } else {
             now = refit_sah(mine, s, {}, ex).sah;
-            const double predicted = now > rebuilt_sah ? trust * prev_ms * now / prev_sah * (1 - rebuilt_sah / now) : 0;
+            const double next = scaled(prev_ms, prev_sah, now);
+            const double predicted = now > rebuilt_sah ? trust * (next - scaled(next, now, rebuilt_sah)) : 0;
             CHECK(r.loss_ms == doctest::Approx(loss + predicted).epsilon(1e-12));
             CHECK(r.rebuild_cost_ms == cost);
             CHECK(r.trust == doctest::Approx(trust).epsilon(1e-12));
+            CHECK(r.elasticity == e);
             if (loss + predicted >= cost) {
                 want = Decision::rebuild;
                 check = true;
-                check_refit = prev_ms * now / prev_sah;
+                check_refit = next;
             }
             streak.refitted(want == Decision::rebuild, loss + predicted >= 2 * cost);
         }
@@ -231,19 +238,30 @@ TEST_CASE("Dynamic: the amortized rule rebuilds exactly when the estimated trace
         expect_decision(r, want, why, f, s, mine, rebuilt_sah, rebuilds, refits, now);
         if (want == Decision::rebuild) now = rebuilt_sah;
         if (want == Decision::rebuild) {
-            if (f > 0) check_fresh = prev_ms * rebuilt_sah / prev_sah;
+            if (f > 0) check_fresh = scaled(prev_ms, prev_sah, rebuilt_sah);
             loss = 0;
+            first_pending = true;
         }
         // the caller traces, then reports
         check_exact(dyn.bvh(), tris, 300 + std::uint64_t(f), "frame " + std::to_string(f));
         dyn.record_trace_ms(trace_ms[f]);
+        if (first_pending) {
+            first_ms = trace_ms[f];
+            first_sah = now;
+            first_pending = false;
+        } else if (now >= 1.2 * first_sah) {
+            const double raw = std::log(trace_ms[f] / first_ms) / std::log(now / first_sah);
+            e = std::clamp(raw, 0.125, 1.0);
+            ++measured_e;
+            clamped_e += raw != e;
+        }
         if (check) {
             const double share = (check_refit - trace_ms[f]) / (check_refit - check_fresh);
             if (check_refit > check_fresh) trust = std::max(0.125, 0.5 * trust + 0.5 * std::clamp(share, 0.0, 1.0));
             check = false;
             ++checks;
         }
-        if (now > rebuilt_sah) loss += trust * trace_ms[f] * (1 - rebuilt_sah / now);
+        if (now > rebuilt_sah) loss += trust * (trace_ms[f] - scaled(trace_ms[f], now, rebuilt_sah));
         prev_ms = trace_ms[f];
         prev_sah = now;
     }
@@ -252,6 +270,8 @@ TEST_CASE("Dynamic: the amortized rule rebuilds exactly when the estimated trace
     CHECK(checks >= 2);
     CHECK(streaks >= 2);
     CHECK(trust < 1);   // the script's times after rebuilds do not show the whole predicted saving
+    CHECK(measured_e >= 2);   // the elasticity was measured, once at least inside its bounds
+    CHECK(measured_e > clamped_e);
     // Without reported trace times the rule is sah_growth's; bad trace times are ignored; bad costs throw.
     Dynamic<builder::lbvh, Node<>, prim::copied, exec::serial> quiet({.rule = RebuildRule::amortized, .rebuild_threshold = 0});
     for (int f = 0; f < 3; ++f) {

@@ -102,6 +102,7 @@ public:
         s.loss_ms = report_.loss_ms;
         s.rebuild_cost_ms = report_.rebuild_cost_ms;
         s.trust = report_.trust;
+        s.elasticity = report_.elasticity;
         s.rebuild_started = report_.rebuild_started;
         return s;
     }

@@ -48,6 +48,7 @@ Json records_json(const std::vector<FrameRecord>& recs) {
             j["loss_ms"] = f.strategy->loss_ms;
             j["rebuild_cost_ms"] = f.strategy->rebuild_cost_ms;
             j["trust"] = f.strategy->trust;
+            j["elasticity"] = f.strategy->elasticity;
         }
         a.push_back(std::move(j));
     }

@@ -49,6 +49,7 @@ struct StrategyRecord {
     double loss_ms = 0;                ///< amortized: trace time estimated lost to refitting since the last rebuild
     double rebuild_cost_ms = 0;        ///< amortized: what a rebuild is taken to cost (the last one's time)
     double trust = 1;                  ///< amortized: share of SAH-predicted savings rebuilds delivered (FrameReport::trust)
+    double elasticity = 1;             ///< amortized: e of trace time ~ SAH^e used by the loss estimates (FrameReport::elasticity)
     bool rebuild_started = false;      ///< async: a background rebuild started this frame
 };
 

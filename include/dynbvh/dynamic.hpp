@@ -8,17 +8,21 @@
 ///       auto hit = dynbvh::intersect(scene.bvh(), tris, ray);
 ///   }
 /// @endcode
-/// Each frame the tree is refitted (refit.hpp) and its SAH (sah.hpp) evaluated. Two rules decide when
+/// Each frame the tree is refitted and its SAH summed in the same passes (refit_sah, refit.hpp). Two rules decide when
 /// it is rebuilt instead (`DynamicConfig::rule`):
 ///  - `amortized` (the default, once the caller reports trace times with record_trace_ms()): trace time
-///    is taken as proportional to the SAH (Goldsmith & Salmon 1987; MacDonald & Booth 1990), so of a frame
-///    traced in T ms with SAH s, T (1 - s_rebuilt / s) is the time the refitted tree lost against a fresh
-///    one (s_rebuilt: the SAH right after the last rebuild). The losses are summed since the last rebuild,
+///    is taken as growing with the SAH (Goldsmith & Salmon 1987; MacDonald & Booth 1990) as T ~ s^e, so of
+///    a frame traced in T ms with SAH s, T (1 - (s_rebuilt / s)^e) is the time the refitted tree lost
+///    against a fresh one (s_rebuilt: the SAH right after the last rebuild). The elasticity e starts at 1
+///    (trace time proportional to the SAH) and is measured on the refitted frames themselves: once the
+///    SAH has grown by 20 % over the first frame traced after the last (re)build, e = log(T / T1) /
+///    log(s / s1) of the current frame against that first one, kept in [1/8, 1]
+///    (`FrameReport::elasticity`; packets, caches and the scene's depth complexity make trace time grow
+///    more slowly than the SAH, often at a third of its rate). The losses are summed since the last rebuild,
 ///    this frame's predicted one added; once that sum reaches what a rebuild costs (its measured time, or
 ///    `rebuild_ms`), the tree is rebuilt. This is the ski-rental rule: a rebuild is bought once refitting
 ///    has cost as much, so the policy never pays much more than the better of always refitting and
-///    always rebuilding, at any resolution, without being told which. SAH predicts trace time only
-///    roughly (packets, caches and the scene's depth complexity do not follow it), so the model is
+///    always rebuilding, at any resolution, without being told which. The model is also
 ///    checked after each such rebuild: the first traced frame of the fresh tree gives the saving
 ///    actually measured against the one predicted, and their ratio (kept in [1/8, 1], averaged over
 ///    rebuilds) scales every later loss estimate (`FrameReport::trust`).
@@ -120,6 +124,9 @@ struct FrameReport {
     /// Amortized rule: the share of the SAH-predicted savings that rebuilds measurably delivered so far
     /// (1 until a rebuild has been checked; in [1/8, 1]); it scales loss_ms.
     double trust = 1;
+    /// Amortized rule: the elasticity e of trace time to the SAH the loss estimates use (T ~ s^e, in
+    /// [1/8, 1]; 1 until measured, see the file comment).
+    double elasticity = 1;
 };
 
 /// How Dynamic decides to rebuild a refitted tree (see dynamic.hpp's file comment).
@@ -196,6 +203,10 @@ public:
             trace_ms_ = o.trace_ms_;
             trace_sah_ = o.trace_sah_;
             trust_ = o.trust_;
+            elasticity_ = o.elasticity_;
+            first_ms_ = o.first_ms_;
+            first_sah_ = o.first_sah_;
+            first_pending_ = o.first_pending_;
             check_ = o.check_;
             check_refit_ms_ = o.check_refit_ms_;
             check_fresh_ms_ = o.check_fresh_ms_;
@@ -226,10 +237,18 @@ public:
 
     /// Tells the amortized rule how long the caller traced the current tree (the one the last update()
     /// left) this frame, in ms; call it once per frame, after tracing. A negative, NaN or infinite `ms`
-    /// is ignored. It adds that frame's estimated loss, ms (1 - rebuild_sah() / sah()), to the sum the
-    /// rule compares.
+    /// is ignored. It adds that frame's estimated loss, ms (1 - (rebuild_sah() / sah())^e), to the sum the
+    /// rule compares, and measures e on refitted frames (see the file comment).
     void record_trace_ms(double ms) noexcept {
         if (!(ms >= 0) || !std::isfinite(ms) || !built_) return;
+        if (first_pending_) {
+            // Step: the first frame traced since the last (re)build or swap: the elasticity's reference.
+            first_ms_ = ms;
+            first_sah_ = sah_;
+            first_pending_ = false;
+        } else if (first_ms_ > 0 && ms > 0 && sah_ >= elasticity_growth * first_sah_) {
+            elasticity_ = std::clamp(std::log(ms / first_ms_) / std::log(sah_ / first_sah_), min_trust, 1.0);
+        }
         if (check_) {
             // Step: the first frame traced after an amortized rebuild: measured vs predicted saving.
             const double predicted = check_refit_ms_ - check_fresh_ms_, measured = check_refit_ms_ - ms;
@@ -274,11 +293,19 @@ private:
         std::exception_ptr error;         // guarded by mutex
     };
 
-    /// The least trust in the SAH model, so that a tree degrading without bound is still rebuilt.
+    /// The least trust in the SAH model (and least elasticity), so that a tree degrading without bound is
+    /// still rebuilt.
     static constexpr double min_trust = 0.125;
+    /// SAH growth over the first traced frame of a run from which the elasticity is measured (below it,
+    /// the ratio of two noisy trace times says little).
+    static constexpr double elasticity_growth = 1.2;
+    /// Trace time predicted for SAH `to` from `ms` measured at SAH `from`: ms (to / from)^e.
+    double scaled(double ms, double from, double to) const noexcept {
+        return elasticity_ == 1.0 ? ms * to / from : ms * std::pow(to / from, elasticity_);
+    }
     /// Of `ms` traced with SAH `sah`, what a fresh tree (SAH sah_rebuilt_) would have saved.
     double lost(double ms, double sah) const noexcept {
-        return sah > sah_rebuilt_ && sah > 0 ? ms * (1.0 - sah_rebuilt_ / sah) : 0.0;
+        return sah > sah_rebuilt_ && sah > 0 ? ms - scaled(ms, sah, sah_rebuilt_) : 0.0;
     }
     double rebuild_cost() const noexcept { return cfg_.rebuild_ms > 0 ? cfg_.rebuild_ms : build_ms_; }
     bool amortizing() const noexcept { return cfg_.rule == RebuildRule::amortized && trace_sah_ > 0; }
@@ -289,10 +316,11 @@ private:
             return sah_ > cfg_.rebuild_threshold * sah_rebuilt_;
         }
         // This frame's loss predicted from the last traced frame's time, scaled by the SAH.
-        const double predicted = trust_ * lost(trace_ms_ * sah_ / trace_sah_, sah_);
+        const double predicted = trust_ * lost(scaled(trace_ms_, trace_sah_, sah_), sah_);
         r.loss_ms = loss_ms_ + predicted;
         r.rebuild_cost_ms = rebuild_cost();
         r.trust = trust_;
+        r.elasticity = elasticity_;
         r.reason = Reason::amortized;
         return r.loss_ms >= r.rebuild_cost_ms;
     }
@@ -338,6 +366,7 @@ private:
                 if (amortizing()) {   // (what grown() reports under this rule)
                     r.rebuild_cost_ms = rebuild_cost();
                     r.trust = trust_;
+                    r.elasticity = elasticity_;
                 }
                 ++probes_;
             }
@@ -352,6 +381,7 @@ private:
                 build_ms_ = job->ms;
                 loss_ms_ = 0;
                 r.decision = Decision::swap;
+                first_pending_ = true;
                 FrameReport rule;
                 if (grown(rule)) start_background(tris, r);
                 r.reason = Reason::rebuild_ready;
@@ -375,14 +405,14 @@ private:
                     } else {
                         // What this frame's trace would take with the refitted tree, and with a fresh one
                         // (by the SAH): checked against the measured time in record_trace_ms().
-                        const double refit_ms = trace_sah_ > 0 ? trace_ms_ * sah_ / trace_sah_ : 0;
+                        const double refit_ms = trace_sah_ > 0 ? scaled(trace_ms_, trace_sah_, sah_) : 0;
                         if (refit_reads_all) bad = excluded_ids_;   // (empty: the refit found every triangle finite)
                         rebuild_now(tris, std::move(bad));
                         r.decision = Decision::rebuild;
                         if (r.reason == Reason::amortized) {
                             check_ = true;
                             check_refit_ms_ = refit_ms;
-                            check_fresh_ms_ = trace_ms_ * sah_ / trace_sah_;
+                            check_fresh_ms_ = scaled(trace_ms_, trace_sah_, sah_);
                         }
                     }
                 } else {
@@ -420,6 +450,7 @@ private:
         excluded_ids_ = std::move(bad);
         built_ = true;
         fresh_ = true;
+        first_pending_ = true;
     }
 
     /// Whether the rule's rebuild this frame (r from grown()) is by the streak margin (see the file comment).
@@ -496,6 +527,9 @@ private:
     double trace_ms_ = 0;       // amortized rule: the last reported trace time ...
     double trace_sah_ = 0;      // ... and the SAH of the tree it traced (0: none reported yet)
     double trust_ = 1;          // amortized rule: share of predicted savings that rebuilds delivered
+    double elasticity_ = 1;     // amortized rule: e of T ~ s^e, measured on refitted frames
+    double first_ms_ = 0, first_sah_ = 0;   // the first frame traced since the last (re)build or swap ...
+    bool first_pending_ = false;            // ... is still to come
     bool check_ = false;        // the next record_trace_ms() checks the last rebuild's saving ...
     double check_refit_ms_ = 0, check_fresh_ms_ = 0;   // ... against these predictions
     std::vector<std::uint32_t> excluded_ids_;   // non-finite triangles of the current tree's build
