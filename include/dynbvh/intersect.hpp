@@ -399,9 +399,28 @@ struct watertight {
         }
     }
 
+    /// What test() returns, bit for bit, for a ray and triangle whose three edge functions (test()'s
+    /// sign test) are known to be non-zero and all positive (`positive`) or all negative: the SIMD
+    /// filter proves this for most hits (detail/triangle_block.hpp), and the sign test is then skipped.
+    /// t, u, v come from the accurate evaluation as in test(); where it falls back to the decision's
+    /// own weights (a hair outside an edge), those are computed as test() computes them.
+    template <class T>
+    static bool test_inside(const prepared<T>& p, const Triangle<T>& tri, T tmax, bool positive, T& t, T& u, T& v) noexcept {
+        switch (p.kz) {
+        case 0: return finish<1, 2, 0>(p, tri, tmax, nullptr, positive ? 1.0 : -1.0, t, u, v);
+        case 1: return finish<2, 0, 1>(p, tri, tmax, nullptr, positive ? 1.0 : -1.0, t, u, v);
+        default: return finish<0, 1, 2>(p, tri, tmax, nullptr, positive ? 1.0 : -1.0, t, u, v);
+        }
+    }
+
 private:
+    /// The edge functions U, V, W of the sign test (eu, ev, ew) and their sum.
+    struct Edges {
+        double eu, ev, ew, det;
+    };
+
     template <std::size_t KX, std::size_t KY, std::size_t KZ, class T>
-    static DYNBVH_ALWAYS_INLINE bool test_axes(const prepared<T>& p, const Triangle<T>& tri, T tmax, T& t, T& u, T& v) noexcept {
+    static DYNBVH_ALWAYS_INLINE Edges edges(const prepared<T>& p, const Triangle<T>& tri) noexcept {
         using W = double;  // edge-function precision: exact signs for float, see the class comment
         const Vec3<T> A = tri.p0 - p.org, B = tri.p1 - p.org, C = tri.p2 - p.org;
         using detail::sub_mul;
@@ -430,14 +449,19 @@ private:
             }
 #endif
         }
+        return {eu, ev, ew, eu + ev + ew};
+    }
+
+    template <std::size_t KX, std::size_t KY, std::size_t KZ, class T>
+    static DYNBVH_ALWAYS_INLINE bool test_axes(const prepared<T>& p, const Triangle<T>& tri, T tmax, T& t, T& u, T& v) noexcept {
+        const Edges e = edges<KX, KY, KZ>(p, tri);
         // Both windings hit; a NaN fails both alternatives. Bitwise & and | (one branch instead of six
         // hard-to-predict ones).
-        const bool inside_pos = (eu >= 0) & (ev >= 0) & (ew >= 0);
-        const bool inside_neg = (eu <= 0) & (ev <= 0) & (ew <= 0);
+        const bool inside_pos = (e.eu >= 0) & (e.ev >= 0) & (e.ew >= 0);
+        const bool inside_neg = (e.eu <= 0) & (e.ev <= 0) & (e.ew <= 0);
         if (!(inside_pos | inside_neg)) return false;
-        const W det = eu + ev + ew;
-        if (det == 0) return false;
-        return finish<KX, KY, KZ>(p, tri, tmax, eu, ev, ew, det, t, u, v);
+        if (e.det == 0) return false;
+        return finish<KX, KY, KZ>(p, tri, tmax, &e, e.det > 0 ? 1.0 : -1.0, t, u, v);
     }
 
     // t, u, v from a second, accurate evaluation in double (only for hits, so it hardly costs):
@@ -448,10 +472,11 @@ private:
     // weights of that test are used instead: they put the hit point on the triangle, so t stays
     // consistent with the triangle's box (up to box::robust's margin) and traversal finds what brute
     // force finds.
+    // `e`: the sign test's edge functions (nullptr: computed here if needed, as test() computes them);
+    // `s`: the sign of their sum.
     template <std::size_t KX, std::size_t KY, std::size_t KZ, class T>
-    static DYNBVH_NOINLINE bool finish(const prepared<T>& p, const Triangle<T>& tri, T tmax, double eu, double ev, double ew, double det,
+    static DYNBVH_NOINLINE bool finish(const prepared<T>& p, const Triangle<T>& tri, T tmax, const Edges* e, double s,
                        T& t, T& u, T& v) noexcept {
-        const double s = det > 0 ? 1.0 : -1.0;
         const double az = double(tri.p0[KZ]) - p.org_d[KZ], bz = double(tri.p1[KZ]) - p.org_d[KZ],
                      cz = double(tri.p2[KZ]) - p.org_d[KZ];
         using detail::sub_mul;
@@ -472,10 +497,11 @@ private:
             // The accurate evaluation says the ray passes a hair outside (or is degenerate): keep the
             // weights of the decision itself, which place the hit on the triangle (they are exact
             // barycentrics of the sheared float triangle, whose area the decision found non-zero).
-            w0 = s * eu;
-            w1 = s * ev;
-            w2 = s * ew;
-            sum = s * det;
+            const Edges d = e ? *e : edges<KX, KY, KZ>(p, tri);
+            w0 = s * d.eu;
+            w1 = s * d.ev;
+            w2 = s * d.ew;
+            sum = s * d.det;
         }
         // one division for t, u and v (t is within 2.5 ulp of double before its rounding to T)
         const double inv = 1.0 / sum;

@@ -18,7 +18,10 @@
 /// in slot order and with the current tmax, through tri::watertight::test on that lane's triangle
 /// (rebuilt from the block's floats, which are copies of the user's floats). So the result is the
 /// scalar loop's, bit for bit: same hits, t, u, v, the larger index winning an exact tie
-/// (replaces_hit), the same first hit for any-hit queries.
+/// (replaces_hit), the same first hit for any-hit queries. A kept lane whose three float edge
+/// functions all lie beyond the bound on the same side (certainly all positive or all negative: most
+/// hits) goes through tri::watertight::test_inside instead, which skips the sign test the bound has
+/// decided and gives the same t, u, v (2-5 % less single-ray time on the study's scenes).
 ///
 /// The bound (see `WatertightFilter`), u = 2^-24, eta = 2^-150:
 /// X = p[kx] - org[kx] etc. are the scalar test's differences bit for bit (one rounding each). The
@@ -220,8 +223,13 @@ struct WatertightFilter {
         s.Z = V::abs(Z);
         return s;
     }
-    /// Lane mask (V::mask) of the pairs certainly missed.
-    static DYNBVH_ALWAYS_INLINE typename V::mask rejects(const Sheared& a, const Sheared& bb, const Sheared& c) noexcept {
+    /// Lane masks (V::mask) of one step: the pairs certainly missed (two edge functions of certainly
+    /// opposite signs), and those whose three edge functions are certainly all positive or all negative
+    /// (tri::watertight::test_inside's precondition: the same bound E, the other way round).
+    struct Classes {
+        typename V::mask reject, pos, neg;
+    };
+    static DYNBVH_ALWAYS_INLINE Classes classify(const Sheared& a, const Sheared& bb, const Sheared& c) noexcept {
         constexpr float u = std::numeric_limits<float>::epsilon() * 0.5f;
         // FLT_MIN stands for the eta terms (a larger bound is as sound, and no operand is subnormal:
         // a microcode assist on Intel cores, measured 3.2x slower packets on n-body)
@@ -238,10 +246,15 @@ struct WatertightFilter {
         const R dm2 = V::add(dm, dm);
         const R e = V::madd(pm, V::madd(V::set1(4.0f * u), pm, dm2), V::madd(dm2, dm, tiny));
         // Step 5: reject when one edge function is certainly positive and another certainly negative
-        // (NaN compares false), below 2^60 (no overflow in f).
-        const R fmax = V::max(V::max(fu, fv), fw), fmin = V::min(V::min(fu, fv), fw);
-        const auto rej = V::band(V::gt(fmax, e), V::lt(fmin, V::neg(e)));
-        return V::band(rej, V::lt(pm, V::set1(0x1p60f)));
+        // (NaN compares false), below 2^60 (no overflow in f); inside when all three certainly share a sign.
+        const R fmax = V::max(V::max(fu, fv), fw), fmin = V::min(V::min(fu, fv), fw), ne = V::neg(e);
+        const auto small = V::lt(pm, V::set1(0x1p60f));
+        return {V::band(V::band(V::gt(fmax, e), V::lt(fmin, ne)), small), V::band(V::gt(fmin, e), small),
+                V::band(V::lt(fmax, ne), small)};
+    }
+    /// Lane mask (V::mask) of the pairs certainly missed.
+    static DYNBVH_ALWAYS_INLINE typename V::mask rejects(const Sheared& a, const Sheared& bb, const Sheared& c) noexcept {
+        return classify(a, bb, c).reject;
     }
 };
 
@@ -265,10 +278,12 @@ struct BlockTest<tri::watertight, L> {
         sy_ = V::set1(pt.sy);
     }
 
-    /// Valid lanes the filter cannot reject (the scalar test misses every other lane, whatever tmax).
-    DYNBVH_ALWAYS_INLINE unsigned candidates(const TriangleBlock<L>& b) const noexcept {
+    /// Valid lanes the filter cannot reject (the scalar test misses every other lane, whatever tmax);
+    /// `pos` / `neg` get the lanes whose edge functions are certainly all positive / all negative.
+    DYNBVH_ALWAYS_INLINE unsigned candidates(const TriangleBlock<L>& b, unsigned& pos, unsigned& neg) const noexcept {
         using F = WatertightFilter<V>;
         unsigned rejected = 0;
+        pos = neg = 0;
         for (int h = 0; h < L; h += V::n) {
             // (one call per vertex, not a loop over arrays: GCC keeps such arrays on the stack)
             const auto va = F::shear(V::sub(V::load(&b.v[0][kx_][h]), ox_), V::sub(V::load(&b.v[0][ky_][h]), oy_),
@@ -277,7 +292,10 @@ struct BlockTest<tri::watertight, L> {
                                      V::sub(V::load(&b.v[1][kz_][h]), oz_), sx_, sy_);
             const auto vc = F::shear(V::sub(V::load(&b.v[2][kx_][h]), ox_), V::sub(V::load(&b.v[2][ky_][h]), oy_),
                                      V::sub(V::load(&b.v[2][kz_][h]), oz_), sx_, sy_);
-            rejected |= V::bits(F::rejects(va, vb, vc)) << h;
+            const auto c = F::classify(va, vb, vc);
+            rejected |= V::bits(c.reject) << h;
+            pos |= V::bits(c.pos) << h;
+            neg |= V::bits(c.neg) << h;
         }
         return b.valid_mask() & ~rejected;
     }
@@ -287,12 +305,14 @@ struct BlockTest<tri::watertight, L> {
                                    float& tbox, std::uint32_t& best_prim, Hit<float>& hit) const {
         for (std::size_t i = first; i < end; ++i) {
             const TriangleBlock<L>& b = blocks[i];
-            for (unsigned m = candidates(b); m != 0; m &= m - 1) {
+            unsigned pos, neg;
+            for (unsigned m = candidates(b, pos, neg); m != 0; m &= m - 1) {
                 const int k = std::countr_zero(m);
                 float t, u, v;
-                if (tri::watertight::test(pt, b.triangle(k), tmax, t, u, v) &&
-                    record_hit<AnyHit>(t, u, v, b.prim[k], t_scale, tmax, tbox, best_prim, hit))
-                    return true;
+                // (lanes the filter proved inside skip the scalar test's sign test: the same answer)
+                const bool h = ((pos | neg) >> k & 1) ? tri::watertight::test_inside(pt, b.triangle(k), tmax, (pos >> k & 1) != 0, t, u, v)
+                                                      : tri::watertight::test(pt, b.triangle(k), tmax, t, u, v);
+                if (h && record_hit<AnyHit>(t, u, v, b.prim[k], t_scale, tmax, tbox, best_prim, hit)) return true;
             }
         }
         return false;
