@@ -18,6 +18,7 @@
 
 #include <cmath>
 #include <cstdint>
+#include <array>
 #include <cstring>
 #include <limits>
 #include <string>
@@ -160,7 +161,9 @@ Packed<L> pack(const Scene& s, const Exec& ex = {}) {
 
 /// The sign decision of tri::watertight for a triangle, with the shear FMA-contracted (fmaf) or
 /// not: +1 / -1 when two edge functions have strictly opposite signs (certain miss), 0 otherwise.
-int scalar_opposite_signs(const tri::watertight::prepared<float>& p, const Trianglef& tri, bool contracted) {
+/// The scalar test's three edge functions (double products of the float-sheared vertices), with the
+/// shear rounded as written or contracted to FMAs.
+std::array<double, 3> scalar_edges(const tri::watertight::prepared<float>& p, const Trianglef& tri, bool contracted) {
     const std::size_t z = std::size_t(p.kz), x = (z + 1) % 3, y = (z + 2) % 3;
     auto shear = [&](const Vec3f& q, float& sx, float& sy) {
         const Vec3f a = q - p.org;
@@ -177,18 +180,30 @@ int scalar_opposite_signs(const tri::watertight::prepared<float>& p, const Trian
     shear(tri.p0, ax, ay);
     shear(tri.p1, bx, by);
     shear(tri.p2, cx, cy);
-    const double e[3] = {double(cx) * double(by) - double(cy) * double(bx), double(ax) * double(cy) - double(ay) * double(cx),
-                         double(bx) * double(ay) - double(by) * double(ax)};
+    return {double(cx) * double(by) - double(cy) * double(bx), double(ax) * double(cy) - double(ay) * double(cx),
+            double(bx) * double(ay) - double(by) * double(ax)};
+}
+
+/// 1 when two of the scalar edge functions have strictly opposite signs, else 0.
+int scalar_opposite_signs(const tri::watertight::prepared<float>& p, const Trianglef& tri, bool contracted) {
     bool pos = false, neg = false;
-    for (double v : e) {
+    for (double v : scalar_edges(p, tri, contracted)) {
         pos = pos || v > 0;
         neg = neg || v < 0;
     }
     return pos && neg ? 1 : 0;
 }
 
+/// +1 when all three scalar edge functions are > 0, -1 when all are < 0, else 0.
+int scalar_common_sign(const tri::watertight::prepared<float>& p, const Trianglef& tri, bool contracted) {
+    const auto e = scalar_edges(p, tri, contracted);
+    if (e[0] > 0 && e[1] > 0 && e[2] > 0) return 1;
+    if (e[0] < 0 && e[1] < 0 && e[2] < 0) return -1;
+    return 0;
+}
+
 struct Counts {
-    std::size_t rays = 0, hits = 0, lanes = 0, rejected = 0, bad = 0, unsound = 0;
+    std::size_t rays = 0, hits = 0, lanes = 0, rejected = 0, inside = 0, bad = 0, unsound = 0;
 };
 
 /// Every ray through every leaf in order (tmax carried across leaves as in traversal), and each leaf
@@ -252,10 +267,19 @@ void compare(const Scene& s, const Packed<L>& p, const std::vector<Rayf>& rays, 
             open.tmin = -inf;
             open.tmax = inf;
             for (const auto& b : p.blocks) {
-                const unsigned cand = bt.candidates(b);
+                unsigned pos = 0, neg = 0;
+                const unsigned cand = bt.candidates(b, pos, neg);
                 if ((cand & ~b.valid_mask()) != 0) fail("a padding lane is a candidate");
+                if ((pos & neg) != 0 || ((pos | neg) & ~cand) != 0) fail("inside lanes are not disjoint candidates");
                 for (int k = 0; k < int(b.count); ++k) {
                     ++c.lanes;
+                    // lanes proved inside: the scalar edge functions share that sign (either shear rounding)
+                    if ((pos | neg) >> k & 1) {
+                        ++c.inside;
+                        const int sign = (pos >> k & 1) ? 1 : -1;
+                        const Trianglef t = b.triangle(k);
+                        if (scalar_common_sign(pt, t, false) != sign || scalar_common_sign(pt, t, true) != sign) ++c.unsound;
+                    }
                     if (cand >> k & 1) continue;
                     ++c.rejected;
                     const Trianglef t = b.triangle(k);
@@ -277,7 +301,7 @@ Counts check_scene(Scene s, std::size_t nrays, std::uint64_t seed) {
     compare<Tri, L>(s, p, rays, c);
     MESSAGE(s.name << " L=" << L << std::string(std::is_same_v<Tri, tri::watertight> ? " watertight" : " moller-trumbore") << ": "
                    << s.tris.size() << " triangles in " << p.blocks.size() << " blocks, " << c.rays << " rays, " << c.hits
-                   << " hit; filter rejected " << c.rejected << " of " << c.lanes << " lanes");
+                   << " hit; filter rejected " << c.rejected << " and proved inside " << c.inside << " of " << c.lanes << " lanes");
     CHECK(c.bad == 0);
     CHECK(c.unsound == 0);
     return c;
@@ -300,12 +324,13 @@ void check_adversarial() {
         {"far from the origin (1e7)", 1.0f, {1e7f, -3e7f, 2e7f}},
         {"small at 1e4", 1e-3f, {1e4f, 1e4f, -1e4f}},
     };
-    std::size_t rejected = 0, lanes = 0;
+    std::size_t rejected = 0, inside = 0, lanes = 0;
     for (const Case& k : cases) {
         Scene s = grid_scene(k.name, 9, k.scale, k.offset, rng);
         const Counts c = check_scene<Tri, L>(s, 1500, rng.next());
         if (std::string(k.name) == "unit grid") {
             rejected += c.rejected;
+            inside += c.inside;
             lanes += c.lanes;
         }
         Scene bad = grid_scene(std::string(k.name) + " with NaN/inf vertices", 6, k.scale, k.offset, rng);
@@ -326,12 +351,15 @@ void check_adversarial() {
     }
 #if defined(DYNBVH_SSE)
     if constexpr (std::is_same_v<Tri, tri::watertight>) {
-        // The filter must do its job: most lanes of ordinary rays are rejected in SIMD.
-        MESSAGE("unit grid: filter rejected " << rejected << " of " << lanes << " lanes");
+        // The filter must do its job: most lanes of ordinary rays are rejected in SIMD, and the
+        // lanes of hit triangles are mostly proved inside (the sign-test shortcut is taken).
+        MESSAGE("unit grid: filter rejected " << rejected << ", proved inside " << inside << " of " << lanes << " lanes");
         CHECK(rejected * 2 > lanes);
+        CHECK(inside > 0);
     }
 #else
     (void)rejected;
+    (void)inside;
     (void)lanes;
 #endif
 }

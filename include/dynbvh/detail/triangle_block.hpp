@@ -175,8 +175,11 @@ struct BlockTest {
 
     explicit BlockTest(const Ray<float>& r) noexcept : pt(r) {}
 
-    /// Lanes that may hit (here: every valid lane).
-    unsigned candidates(const TriangleBlock<L>& b) const noexcept { return b.valid_mask(); }
+    /// Lanes that may hit (here: every valid lane); `pos` / `neg` (lanes proved inside): none.
+    unsigned candidates(const TriangleBlock<L>& b, unsigned& pos, unsigned& neg) const noexcept {
+        pos = neg = 0;
+        return b.valid_mask();
+    }
 
     /// Blocks [first, end) with test_leaf's contract: each hit narrows tmax and tbox = tmax * t_scale and
     /// sets best_prim and hit.t/u/v; with AnyHit the first hit sets hit.prim and returns true.
