@@ -238,14 +238,15 @@ struct tbb {
             ::tbb::parallel_for(std::size_t(0), n, [&](std::size_t k) { f(k); });
         });
     }
-    /// tbb::parallel_reduce of map(i) over [b, e) with `combine` (associative); TBB chooses the split, so
-    /// a floating-point reduction may round differently from run to run.
+    /// tbb::parallel_deterministic_reduce of map(i) over [b, e) with `combine` (associative): ranges of at
+    /// most 1024 indices reduced in order and combined in a fixed tree, so a floating-point reduction gives
+    /// the same bits from run to run and for any thread count (what the refit-or-rebuild decisions need).
     template <class T, class Map, class Combine>
     T reduce(std::size_t b, std::size_t e, T identity, Map&& map, Combine&& combine) const {
         if (e <= b) return identity;
         T result = identity;
         run([&] {
-            result = ::tbb::parallel_reduce(
+            result = ::tbb::parallel_deterministic_reduce(
                 ::tbb::blocked_range<std::size_t>(b, e, 1024), identity,
                 [&](const ::tbb::blocked_range<std::size_t>& r, T acc) {
                     for (std::size_t i = r.begin(); i < r.end(); ++i) acc = combine(acc, map(i));
