@@ -3,13 +3,16 @@
 // primary camera rays and the same thread counts in one run, so every figure reads as a ratio to
 // Embree measured beside it (/low, /med: rtcIntersect1; /epkt: Embree's best packet figure).
 //
-//   dynbvh-bench-trace [--threads 1,2] [--res 854x480] [--reps 5] [--leaf 8]
+//   dynbvh-bench-trace [--threads 1,2] [--res 854x480] [--reps 5] [--leaf 8] [--top 64]
 //                      [--scenes cloth-ball,n-body,funnel,lattice,bunny,dragon] [--only METHOD]   (--x=v works too; --help)
 //
 // Scenes: the middle frame of the built-in cloth-ball, n-body and funnel (scene camera), `lattice`
 // (scenes/lattice.hpp: 101k long thin triangles of beams crossing the scene, turned off the axes), and
-// the Stanford bunny and dragon from DYNBVH_DATA_DIR when present (a camera that frames the mesh).
+// the Stanford bunny and dragon from DYNBVH_DATA_DIR when present (a camera that frames the mesh); on
+// request (--scenes), the middle frame of BART's robots and kitchen from there, with their cameras.
 // "mwide8 blk": morton_wide (the 8-wide tree straight from the sorted Morton codes) with block leaves.
+// "hlbvh": LBVH whose top, above its subtrees of at most --top references, is rebuilt by binned SAH
+// (lbvh::Config::sah_top, detail/sah_top.hpp; HLBVH, Pantaleoni and Luebke 2010).
 // Packets: 4x2 pixels (8 rays) or 4x4 (16) inside each 16x16 tile, coherent context for Embree; ours
 // ("... blk x8", "x16", "x32" = 8x4 pixels as two 4x4 halves: packet.hpp on the block trees, and on
 // the default-leaf PLOC tree the study traces, "ploc wide8 x32"; trace::robust) beside them, checked to give the
@@ -35,6 +38,7 @@
 #include <vector>
 
 #include <dynbvh/binned_sah.hpp>
+#include <dynbvh/io/bart.hpp>
 #include <dynbvh/io/obj.hpp>
 #include <dynbvh/kbvh.hpp>
 #include <dynbvh/io/ply.hpp>
@@ -92,6 +96,20 @@ bool load_scene(const std::string& name, SceneData& out) {
         }
         return true;
     }
+    if (name == "robots" || name == "kitchen") {   // BART (io/bart.hpp): the middle frame, its own camera
+        const std::string path = std::string(DYNBVH_DATA_DIR) + (name == "robots" ? "/bart/robot/Robot.aff" : "/bart/kitchen/kitchen.aff");
+        try {
+            const auto bart = io::load_bart(path);
+            io::Frame f;
+            bart->frame(bart->frame_count() / 2, f);
+            out.tris = std::move(f.triangles);
+            out.camera = f.camera;
+        } catch (const std::exception& e) {
+            std::printf("(skipping %s: %s)\n", name.c_str(), e.what());
+            return false;
+        }
+        return true;
+    }
     auto scene = scenes::make_builtin(name);
     io::Frame f;
     scene->frame(scene->frame_count() / 2, f);
@@ -140,6 +158,7 @@ int main(int argc, char** argv) {
     int width = 854, height = 480, reps = 5;
     std::uint32_t max_leaf = LeafConfig{}.max_leaf_size;   // --leaf=N: most references per leaf of our trees
     std::vector<std::string> scene_names = {"cloth-ball", "n-body", "funnel", "lattice", "bunny", "dragon"};
+    std::uint32_t top = 64;   // --top=N: lbvh::Config::sah_top of the "hlbvh" rows
     std::string only;   // --only=NAME: time just this method (and Embree LOW/MEDIUM), for profiling
     std::string res = "854x480";
     CLI::App app{"dynbvh-bench-trace: single-ray trace speed of our binary and wide traversals beside Embree's rtcIntersect1.",
@@ -154,9 +173,12 @@ int main(int argc, char** argv) {
     app.add_option("--leaf", max_leaf, "most references per leaf of our trees (default 8)")
         ->type_name("N")
         ->check(cli::number_in<std::uint32_t>(1, 256));
-    app.add_option("--scenes", scene_names, "cloth-ball, n-body, funnel, lattice, bunny, dragon (default all), comma separated")
+    app.add_option("--scenes", scene_names, "cloth-ball, n-body, funnel, lattice, bunny, dragon (default all), robots, kitchen (BART), comma separated")
         ->type_name("LIST")
         ->delimiter(',');
+    app.add_option("--top", top, "sah_top of the hlbvh rows: subtrees of at most N references kept, the top by SAH (default 64)")
+        ->type_name("N")
+        ->check(cli::number_in<std::uint32_t>(1, 1u << 30));
     app.add_option("--only", only, "time just this method (and Embree LOW/MEDIUM), for profiling")->type_name("METHOD");
     app.footer("Options take their value as --x V or --x=V.");
     if (const auto rc = cli::parse(app, argc, argv)) return *rc;
@@ -173,7 +195,7 @@ int main(int argc, char** argv) {
     }
     for (const std::string& n : scene_names) {
         const auto builtin = scenes::builtin_names();
-        if (n != "bunny" && n != "dragon" && n != "lattice" && std::find(builtin.begin(), builtin.end(), n) == builtin.end()) {
+        if (n != "bunny" && n != "dragon" && n != "lattice" && n != "robots" && n != "kitchen" && std::find(builtin.begin(), builtin.end(), n) == builtin.end()) {
             std::fprintf(stderr, "dynbvh-bench-trace: --scenes: unknown scene '%s' (see --help)\n", n.c_str());
             return 2;
         }
@@ -238,6 +260,7 @@ int main(int argc, char** argv) {
         LeafConfig bleaves = block_leaves;
         bleaves.max_leaf_size = std::max<std::uint32_t>(max_leaf, 1);
         const auto lbk = make_wide_blocks<8>(lbvh::build(tris, {.leaves = bleaves}, bex), tris, bex);
+        const auto hbk = make_wide_blocks<8>(lbvh::build(tris, {.leaves = bleaves, .sah_top = top}, bex), tris, bex);   // HLBVH
         const auto pbk = make_wide_blocks<8>(ploc::build(tris, {.radius = 5, .leaves = bleaves}, bex), tris, bex);
         const auto sbk = make_wide_blocks<8>(binned_sah::build(tris, {.leaves = bleaves}, bex), tris, bex);
         kbvh::Config<> kcfg;   // presplit (default budget) + PLOC r = 5
@@ -299,6 +322,8 @@ int main(int argc, char** argv) {
         };
         const std::size_t first_our_packets = methods.size();
         add_packets("lbvh wide8 blk x16", our_packets(lbk, P16{}), P16{});
+        add_packets("lbvh wide8 blk x32", our_packets(lbk, P32{}), P32{});
+        add_packets("hlbvh wide8 blk x32", our_packets(hbk, P32{}), P32{});
         add_packets("ploc wide8 blk x8", our_packets(pbk, P8{}), P8{});
         add_packets("ploc wide8 blk x16", our_packets(pbk, P16{}), P16{});
         add_packets("sah wide8 blk x8", our_packets(sbk, P8{}), P8{});
@@ -325,6 +350,7 @@ int main(int argc, char** argv) {
         add("ploc wide8 fast", [&](const Rayf& r) { return intersect<trace::fast>(pw8, tris, r).prim; });
         // 8-wide nodes with SIMD triangle-block leaves (wide_blocks.hpp)
         add("lbvh wide8 blk", [&](const Rayf& r) { return intersect(lbk, tris, r).prim; });
+        add("hlbvh wide8 blk", [&](const Rayf& r) { return intersect(hbk, tris, r).prim; });
         add("ploc wide8 blk", [&](const Rayf& r) { return intersect(pbk, tris, r).prim; });
         add("sah wide8 blk", [&](const Rayf& r) { return intersect(sbk, tris, r).prim; });
         add("kbvh wide8 blk", [&](const Rayf& r) { return intersect(kbk, tris, r).prim; });
@@ -407,6 +433,8 @@ int main(int argc, char** argv) {
                     "8-wide conversion of lbvh %.3f ms, with 8-lane block leaves %.3f ms\n",
                     sah_cost(lw8, sc3), sah_cost(pw8, sc3), sah_cost(sw8, sc3), lw8.nodes.size(), lw8.depth, pw8.nodes.size(),
                     pw8.depth, sw8.nodes.size(), sw8.depth, median(t_conv8), median(t_conv8b));
+        std::printf("   SAH 8-wide blocks: lbvh %.2f  hlbvh (top %u) %.2f  ploc %.2f  sah %.2f  kbvh %.2f  mwide %.2f\n", sah_cost(lbk, sc3), top,
+                    sah_cost(hbk, sc3), sah_cost(pbk, sc3), sah_cost(sbk, sc3), sah_cost(kbk, sc3), sah_cost(mwk, sc3));
         const double ml = median(t_lbvh), mc = median(t_conv), mcp = median(t_conv_ploc);
         const double ml1 = median(t_lbvh1), mc1 = median(t_conv1);
         std::printf("   build (%d threads): lbvh %.2f ms, wide conversion %.3f ms (%.1f%% of lbvh), of ploc tree %.3f ms;"

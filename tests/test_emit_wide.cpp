@@ -77,6 +77,8 @@ void check_all_builders(const Ex& ex) {
                   [](auto t, const auto& e) { return lbvh::build<NodeT, Prim>(t, {}, e); }, ex);
     check_same<W>("lbvh63 leaf 8", [](auto t, const auto& e) { return lbvh::build_wide<W, NodeT, Prim>(t, {.morton_bits = 63, .leaves = {.max_leaf_size = 8}}, e); },
                   [](auto t, const auto& e) { return lbvh::build<NodeT, Prim>(t, {.morton_bits = 63, .leaves = {.max_leaf_size = 8}}, e); }, ex);
+    check_same<W>("hlbvh 16", [](auto t, const auto& e) { return lbvh::build_wide<W, NodeT, Prim>(t, {.sah_top = 16}, e); },
+                  [](auto t, const auto& e) { return lbvh::build<NodeT, Prim>(t, {.sah_top = 16}, e); }, ex);
     check_same<W>("ploc r5", [](auto t, const auto& e) { return ploc::build_wide<W, NodeT, Prim>(t, {.radius = 5}, e); },
                   [](auto t, const auto& e) { return ploc::build<NodeT, Prim>(t, {.radius = 5}, e); }, ex);
     check_same<W>("kbvh", [](auto t, const auto& e) { return kbvh::build_wide<W, NodeT, Prim>(t, {.split = {.beta = 0.3f}}, e); },

@@ -7,6 +7,7 @@
 #include <dynbvh/kbvh.hpp>
 #include <dynbvh/lbvh.hpp>
 #include <dynbvh/ploc.hpp>
+#include <dynbvh/sah.hpp>
 
 #include <stdexcept>
 #include <string>
@@ -115,4 +116,31 @@ TEST_CASE("prim::precomputed is still accepted as the deprecated name of prim::c
     const auto now = lbvh::build<Node<>, prim::copied>(tris);
     CHECK(old.leaf_triangles.size() == now.leaf_triangles.size());
     CHECK(structure_problems(old, tris) == "");
+}
+
+TEST_CASE("lbvh sah_top (HLBVH): a lower SAH than the plain LBVH; sah_top at or above the reference count leaves the plain tree") {
+    std::vector<std::pair<const char*, std::vector<Trianglef>>> cases;
+    cases.emplace_back("random soup", random_soup(30000, 4));
+    cases.emplace_back("long thin", long_thin(20000));
+    cases.emplace_back("sphere", sphere(48, 96));
+    cases.emplace_back("flat", flat_scene(20000));
+    for (const auto& entry : cases) {
+        const std::string name = entry.first;
+        const std::vector<Trianglef>& tris = entry.second;
+        CAPTURE(name);
+        const auto plain = lbvh::build(tris);
+        const auto top = lbvh::build(tris, {.sah_top = 32});
+        CHECK(structure_problems(top, tris) == "");
+        const double a = sah_cost(plain), b = sah_cost(top);
+        MESSAGE(name << ": SAH lbvh " << a << ", sah_top 32 " << b);
+        CHECK(b < a);
+        // The root is a cluster itself: nothing rebuilt, the plain tree node for node.
+        const auto same = lbvh::build(tris, {.sah_top = std::uint32_t(tris.size())});
+        REQUIRE(same.nodes.size() == plain.nodes.size());
+        bool equal = std::equal(same.prim_ids.begin(), same.prim_ids.end(), plain.prim_ids.begin());
+        for (std::size_t i = 0; i < same.nodes.size(); ++i)
+            equal = equal && same.nodes[i].index == plain.nodes[i].index && same.nodes[i].count == plain.nodes[i].count &&
+                    same.nodes[i].bounds() == plain.nodes[i].bounds();
+        CHECK(equal);
+    }
 }

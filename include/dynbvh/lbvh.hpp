@@ -29,6 +29,7 @@
 #include "mesh.hpp"
 #include "detail/morton.hpp"
 #include "detail/references.hpp"
+#include "detail/sah_top.hpp"
 #include "detail/scratch.hpp"
 #include "detail/triangle_source.hpp"
 
@@ -38,6 +39,10 @@ namespace dynbvh::lbvh {
 struct Config {
     int morton_bits = 30;      ///< 30 (uint32 keys, faster sort) or 63 (uint64 keys, finer grid for large scenes)
     LeafConfig leaves{};       ///< SAH leaf collapse
+    /// 0 (default): the plain LBVH (the thesis's builder). m > 0: HLBVH (Pantaleoni and Luebke 2010):
+    /// the tree above the subtrees of at most m references is rebuilt by binned SAH over those subtrees
+    /// (detail/sah_top.hpp): a better top for a little more build time. `build_tree` ignores it.
+    std::uint32_t sah_top = 0;
 };
 
 namespace detail {
@@ -119,6 +124,12 @@ BinaryTree build_tree(References<T>& refs, const Config& cfg, const Exec& ex) {
 
 namespace detail {
 
+/// Config::sah_top: the radix tree's top rebuilt by binned SAH over its subtrees of at most sah_top references.
+template <class T, class Exec>
+void rebuild_top(BinaryTree& tree, const References<T>& refs, const Config& cfg, std::span<RawNodeInfo<T>> info, const Exec& ex) {
+    dynbvh::detail::rebuild_top_by_sah(tree, refs, CollapseRule<T>(cfg.leaves), info, cfg.sah_top, ex);
+}
+
 /// build and build_wide over any triangle source (a span or a MeshView): one code path.
 template <class NodeT, class Prim, class Source, class Exec>
 Bvh<NodeT, Prim> build(Source tris, const Config& cfg, const Exec& ex) {
@@ -126,7 +137,8 @@ Bvh<NodeT, Prim> build(Source tris, const Config& cfg, const Exec& ex) {
     auto refs = make_references(tris, ex);
     // The bottom-up construction computes every node's box and leaf collapse as it goes.
     scratch_vector<RawNodeInfo<T>> info(refs.size() > 1 ? refs.size() - 1 : 0);
-    const auto tree = build_tree(refs, cfg, info.data(), ex);
+    auto tree = build_tree(refs, cfg, info.data(), ex);
+    if (cfg.sah_top != 0) rebuild_top(tree, refs, cfg, std::span<RawNodeInfo<T>>(info), ex);
     return dynbvh::detail::emit_from_info<NodeT, Prim>(tree, refs, tris, std::span<const RawNodeInfo<T>>(info), ex);
 }
 
@@ -135,7 +147,8 @@ wide_bvh_of<Bvh<NodeT, Prim>, W> build_wide(Source tris, const Config& cfg, cons
     using T = typename NodeT::scalar_type;
     auto refs = make_references(tris, ex);
     scratch_vector<RawNodeInfo<T>> info(refs.size() > 1 ? refs.size() - 1 : 0);
-    const auto tree = build_tree(refs, cfg, info.data(), ex);
+    auto tree = build_tree(refs, cfg, info.data(), ex);
+    if (cfg.sah_top != 0) rebuild_top(tree, refs, cfg, std::span<RawNodeInfo<T>>(info), ex);
     return dynbvh::detail::emit_wide_from_info<W, NodeT, Prim>(tree, refs, tris, std::span<const RawNodeInfo<T>>(info), ex);
 }
 
