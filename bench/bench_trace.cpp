@@ -358,6 +358,9 @@ int main(int argc, char** argv) {
         add("mwide8 blk fast", [&](const Rayf& r) { return intersect<trace::fast>(mwk, tris, r).prim; });
         add("ploc wide8 blk fast", [&](const Rayf& r) { return intersect<trace::fast>(pbk, tris, r).prim; });
         add("sah wide8 blk fast", [&](const Rayf& r) { return intersect<trace::fast>(sbk, tris, r).prim; });
+        // where the robust policy's cost goes: its triangle test with the fast box test, and the other way round
+        add("ploc wide8 blk wt+fbox", [&](const Rayf& r) { return intersect<trace::policy<box::fast, tri::watertight>>(pbk, tris, r).prim; });
+        add("ploc wide8 blk mt+rbox", [&](const Rayf& r) { return intersect<trace::policy<box::robust, tri::moller_trumbore>>(pbk, tris, r).prim; });
         add("ploc w8 blk8 dfl", [&](const Rayf& r) { return intersect(pw8b8, tris, r).prim; });
         add("ploc w8 blk4 dfl", [&](const Rayf& r) { return intersect(pw8b4, tris, r).prim; });
         add("ploc w8 blk4 dfl fast", [&](const Rayf& r) { return intersect<trace::fast>(pw8b4, tris, r).prim; });
