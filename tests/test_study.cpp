@@ -439,6 +439,49 @@ TEST_CASE("study: morton-wide (blocks by default, blocks=0, wide=4) hits exactly
     CHECK(read_all(out / "bad.txt").find("morton-wide builds a wide tree only") != std::string::npos);
 }
 
+TEST_CASE("study: our wide trees trace SIMD triangle blocks by default and hit exactly what index leaves hit") {
+    const auto out = tmp / "blocks_default";
+    std::filesystem::remove_all(out);
+    std::filesystem::create_directories(out);
+    const std::vector<std::string> names = {"ploc",   "ploc:blocks=0", "auto",        "auto:blocks=0", "refit",
+                                            "refit:blocks=0", "ploc:wide=0", "ploc:prim=pre", "lbvh:wide=4"};
+    std::string list;
+    for (const auto& n : names) list += (list.empty() ? "" : ",") + n;
+    const int rc = run_study("--scenes n-body,funnel --scale 0.05 --frames 3 --builders " + list +
+                             " --res 48x32 --images 0 --threads 2 --no-warmup --out \"" + out.string() + "\"",
+                             out / "log.txt");
+    INFO(read_all(out / "log.txt"));
+    REQUIRE(rc == 0);
+    const Json j = Json::parse(read_all(out / "study.json"));
+    CHECK(j.at("builders") == Json(names));   // canonical names: blocks is the default, so no knob shows
+    const auto group = [&](const std::string& scene, const std::string& b) -> const Json* {
+        for (const auto& g : j.at("results"))
+            if (g.at("scene") == scene && g.at("builder") == b) return &g;
+        return nullptr;
+    };
+    for (const char* scene : {"n-body", "funnel"}) {
+        const Json* ref = group(scene, "ploc:blocks=0");
+        REQUIRE(ref != nullptr);
+        for (const auto& b : names) {
+            INFO(scene << " " << b);
+            const Json* g = group(scene, b);
+            REQUIRE(g != nullptr);
+            REQUIRE(g->at("per_frame").size() == 3);
+            for (std::size_t k = 0; k < 3; ++k)   // exact traversal: the same pixels hit whatever the leaves
+                CHECK(g->at("per_frame").at(k).at("hits") == ref->at("per_frame").at(k).at("hits"));
+        }
+        // the block trees are what is traced: their memory is the blocks', not the index leaves'
+        for (const char* b : {"ploc", "auto", "refit"}) {
+            INFO(scene << " " << b);
+            const std::string index_leaves = std::string(b) + ":blocks=0";
+            CHECK(group(scene, b)->at("per_frame").at(0).at("memory_bytes") !=
+                  group(scene, index_leaves)->at("per_frame").at(0).at("memory_bytes"));
+        }
+    }
+    CHECK(run_study("--builders two-level:blocks=1 --out \"" + out.string() + "\"", out / "bad.txt") != 0);
+    CHECK(read_all(out / "bad.txt").find("two-level's objects always trace blocks") != std::string::npos);
+}
+
 TEST_CASE("study: bad input fails with a message naming it") {
     const auto out = tmp / "bad";
     std::filesystem::create_directories(out);

@@ -7,6 +7,7 @@
 
 #include <dynbvh/builder.hpp>
 #include <dynbvh/dynamic.hpp>
+#include <dynbvh/wide_blocks.hpp>
 
 #include "dyn_accel.hpp"
 
@@ -37,12 +38,19 @@ const char* reason_name(Reason r) {
     return "?";
 }
 
+/// The policy's leaf collapse: the spec's largest leaf, with block_leaves' costs (fuller leaves) when
+/// the traced tree has SIMD triangle blocks, as the per-frame rebuilds build theirs (dyn_accel.hpp).
+LeafConfig leaf_config(const BuilderSpec& spec) {
+    LeafConfig leaves{.max_leaf_size = spec.max_leaf};
+    if (spec.blocks) leaves.cost = block_leaves.cost;
+    return leaves;
+}
 template <class B> typename B::config builder_config(const BuilderSpec& spec);
 template <> builder::ploc::config builder_config<builder::ploc>(const BuilderSpec& spec) {
-    return {.radius = spec.radius, .morton_bits = spec.morton_bits, .leaves = {.max_leaf_size = spec.max_leaf}};
+    return {.radius = spec.radius, .morton_bits = spec.morton_bits, .leaves = leaf_config(spec)};
 }
 template <> builder::lbvh::config builder_config<builder::lbvh>(const BuilderSpec& spec) {
-    return {.morton_bits = spec.morton_bits, .leaves = {.max_leaf_size = spec.max_leaf}};
+    return {.morton_bits = spec.morton_bits, .leaves = leaf_config(spec)};
 }
 
 /// dynbvh::Dynamic<B> over the indexed triangles; the traced wide tree is made from its tree each frame.
@@ -64,9 +72,16 @@ public:
     void build(std::span<const Trianglef> tris) override {
         previous_ = std::move(current_);   // freed untimed in release_previous()
         report_ = dyn_.update(tris);
-        // The traced tree: a wide copy of the policy's tree, or for wide=0 a copy of the binary tree itself.
-        // Its leaf part is copied after a rebuild or swap (the policy keeps its own for the next refit);
-        // after a refit the references are unchanged, so the previous wide tree's leaf part is taken over.
+        // The traced tree: the policy's tree made wide with its leaves packed into SIMD triangle blocks
+        // (blocks=1, the default: the vertices moved, so they are packed anew every frame), a wide copy
+        // of it, or for wide=0 a copy of the binary tree itself. A wide copy's leaf part is copied after
+        // a rebuild or swap (the policy keeps its own for the next refit); after a refit the references
+        // are unchanged, so the previous wide tree's leaf part is taken over.
+        if (spec_.blocks) {
+            if (spec_.wide == 4) current_.blocks4 = make_wide_blocks<4>(dyn_.bvh(), tris, ex_);
+            else current_.blocks8 = make_wide_blocks<8>(dyn_.bvh(), tris, ex_);
+            return;
+        }
         const bool same_refs = report_.decision == Decision::refit;
         const auto wide_of = [&]<int W>(auto& wide, auto& before) {
             if (!same_refs || before.empty()) {

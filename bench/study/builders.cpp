@@ -133,7 +133,7 @@ std::string BuilderSpec::base() const {
 }
 
 std::string BuilderSpec::name() const {
-    const BuilderSpec d{.kind = kind, .blocks = default_blocks_of(kind)};
+    const BuilderSpec d{.kind = kind, .blocks = default_blocks_for(kind, wide, precomputed)};
     std::string s = base();
     if ((kind == Kind::dynamic || kind == Kind::two_level || kind == Kind::refit) && over == Kind::lbvh) s += ":lbvh";
     if (radius != d.radius) s += ":r=" + std::to_string(radius);
@@ -181,7 +181,7 @@ BuilderSpec parse_builder(const std::string& spec) {
     bool uses_radius = b.kind == Kind::ploc || b.kind == Kind::kbvh || b.kind == Kind::refit;
     const bool uses_bits = b.kind == Kind::ploc || b.kind == Kind::kbvh || b.kind == Kind::lbvh || b.kind == Kind::refit ||
                            b.kind == Kind::morton_wide;
-    b.blocks = BuilderSpec::default_blocks_of(b.kind);
+    bool blocks_given = false;   // blocks= named: else the default for the kind, width and leaves (below)
     for (std::size_t i = 1; i < parts.size(); ++i) {
         if (b.kind == Kind::dynamic && parse_dynamic_knob(b, spec, parts[i], i)) continue;
         if (b.kind == Kind::two_level && parse_two_level_knob(b, spec, parts[i], i)) continue;
@@ -234,6 +234,7 @@ BuilderSpec parse_builder(const std::string& spec) {
             if (!ours) reject();
             if (v != "0" && v != "1") throw std::invalid_argument("builder '" + spec + "': blocks must be 0 or 1");
             b.blocks = v == "1";
+            blocks_given = true;
         } else {
             reject();
         }
@@ -242,11 +243,10 @@ BuilderSpec parse_builder(const std::string& spec) {
         throw std::invalid_argument("builder '" + spec + "': morton-wide builds a wide tree only (wide=4 or 8)");
     if (b.kind == Kind::morton_wide && b.max_leaf > 255)
         throw std::invalid_argument("builder '" + spec + "': morton-wide's leaf must be in 1..255");
-    if (b.blocks && b.wide == 0) {
-        if (parts.size() > 1 && spec.find("blocks=1") != std::string::npos)
-            throw std::invalid_argument("builder '" + spec + "': blocks=1 needs a wide tree (wide=4 or 8)");
-        b.blocks = false;   // the default with wide=0: the binary tree has no blocks
-    }
+    if (!blocks_given) b.blocks = BuilderSpec::default_blocks_for(b.kind, b.wide, b.precomputed);
+    if (b.blocks && b.wide == 0) throw std::invalid_argument("builder '" + spec + "': blocks=1 needs a wide tree (wide=4 or 8)");
+    if (b.blocks && b.kind == Kind::two_level)
+        throw std::invalid_argument("builder '" + spec + "': two-level's objects always trace blocks (no blocks knob)");
     return b;
 }
 

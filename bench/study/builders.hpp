@@ -36,10 +36,13 @@ inline constexpr int default_wide = 8;
 inline constexpr int default_wide = 4;
 #endif
 
-/// Whether the study traces block-leaf trees (wide_blocks.hpp) by default: not yet. dynbvh-bench-trace
-/// measured them 3-15% faster to trace (robust tests, AVX, one thread), but the study's frame time at
-/// 854x480 came out lower without them: the conversion into blocks costs more than it saves there.
-inline constexpr bool default_blocks = false;
+/// Whether the study traces block-leaf trees (wide_blocks.hpp) by default: yes, for every builder of
+/// ours that traces a wide tree over indexed triangles (lbvh, ploc, kbvh, binned-sah, refit, auto,
+/// morton-wide; see default_blocks_for). Measured 2026-12-07 (dynbvh-study, built-in scenes at scale 1,
+/// 4 frames, 2-3 reps, 2 threads, Xeon with AVX-512, against index leaves in the same run): 5-18 % more
+/// FPS for lbvh, ploc and kbvh on n-body and cloth-ball at 854x480 and 1920x1080, and for ploc on all
+/// five built-ins at 854x480. `blocks=0` gives the index-leaf wide tree.
+inline constexpr bool default_blocks = true;
 
 struct BuilderSpec {
     Kind kind = Kind::lbvh;
@@ -53,9 +56,9 @@ struct BuilderSpec {
     bool precomputed = false;      ///< prim::copied instead of prim::indexed
     int wide = default_wide;       ///< trace a 4- or 8-wide tree converted from the binary one (wide.hpp; the
                                    ///< conversion is part of the timed build); wide=0: the binary traversal
-    bool blocks = default_blocks;  ///< wide tree with leaves in SIMD triangle blocks of `wide` lanes, the binary
+    bool blocks = false;           ///< wide tree with leaves in SIMD triangle blocks of `wide` lanes, the binary
                                    ///< tree built with block_leaves (wide_blocks.hpp); needs wide=4 or 8
-                                   ///< (morton-wide: on by default, see default_blocks_of)
+                                   ///< (parse_builder's default: default_blocks_for)
     Kind over = Kind::ploc;        ///< auto, two-level, refit: the builder its (re)builds use (ploc or lbvh: "auto:lbvh", "refit:lbvh")
     double threshold = 1.3;        ///< auto: rebuild past this many times the last rebuild's SAH ("th=1.5")
     bool async = false;            ///< auto: rebuild on a background thread, swap when ready ("async=1")
@@ -72,9 +75,15 @@ struct BuilderSpec {
     std::string name() const;
     /// The base name ("ploc").
     std::string base() const;
-    /// `blocks` by default for `k`: morton-wide builds only the traced layout, so its leaves go into
-    /// blocks unless blocks=0 (its build is cheap enough for the packing to pay at every resolution).
-    static bool default_blocks_of(Kind k) noexcept { return k == Kind::morton_wide ? true : default_blocks; }
+    /// `blocks` by default for kind `k` with tree width `wide` and leaf triangles `precomputed`: the
+    /// builders of ours whose traced tree is a wide tree over indexed triangles (see default_blocks);
+    /// never for the binary tree (wide=0), for prim=pre (its own leaf layout), two-level (its objects
+    /// always trace blocks) or Embree.
+    static bool default_blocks_for(Kind k, int wide, bool precomputed) noexcept {
+        const bool builds_wide = k == Kind::lbvh || k == Kind::ploc || k == Kind::kbvh || k == Kind::binned_sah ||
+                                 k == Kind::refit || k == Kind::dynamic || k == Kind::morton_wide;
+        return default_blocks && builds_wide && wide != 0 && !precomputed;
+    }
 };
 
 /// Parses "ploc:r=16:leaf=4". Throws std::invalid_argument naming the spec and the problem.

@@ -69,7 +69,7 @@ Builders (--builders, comma separated; default: all available)
   ploc:prim=pre (leaf triangles copied into the tree), ploc:wide=4 / ploc:wide=8 (trace a 4- or 8-wide
   tree converted from the binary one; default 8 when built with AVX, else 4), ploc:wide=0 (the binary
   tree), ploc:blocks=1 / ploc:blocks=0 (the wide tree's leaves in SIMD triangle blocks, the binary tree
-  built with fuller leaves for them, or index leaves, the default), e.g. ploc:r=10:leaf=4
+  built with fuller leaves for them, the default; or index leaves), e.g. ploc:r=10:leaf=4
 
 Options take their value as --x V or --x=V.
 

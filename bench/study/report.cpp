@@ -569,7 +569,8 @@ std::string write_report(const StudyResults& r) {
     md += "| wall time | " + fmt(r.wall_s) + " s |\n\n";
     md += "Protocol (thesis chapter 4-5): for every scene x builder x resolution x repetition, every selected frame is produced "
           "first (untimed), then built (timed) and traced with one primary ray per pixel from the scene's camera (timed; "
-          "16x16 pixel tiles in parallel, closest hit with the robust box test and watertight triangles for our builders; " +
+          "16x16 pixel tiles in parallel, closest hit with the robust box test and watertight triangles for our builders, "
+          "whose wide trees hold their leaves' triangles in SIMD blocks (`blocks=0`: index leaves); " +
           std::string(r.options.packets ? "rays in packets: `dynbvh::intersect(tree, tris, RayPacket<float, 32>)` on 8x4 pixels (two 4x4 halves) for "
                                           "wide trees and two-level scenes, single rays on binary trees; `rtcIntersect16` "
                                           "on 4x4 pixels for Embree (`--rays single`: one ray at a time)"

@@ -5,7 +5,7 @@
 
 namespace dynbvh::study {
 
-BuilderSpec sweep_reference() { return BuilderSpec{.kind = Kind::ploc}; }
+BuilderSpec sweep_reference() { return parse_builder("ploc"); }
 
 std::vector<SweepSetting> sweep_settings(bool small, bool embree) {
     std::vector<SweepSetting> v;
@@ -30,7 +30,8 @@ std::vector<SweepSetting> sweep_settings(bool small, bool embree) {
     add("box test", "robust", "ploc", false);
     add("box test", "fast", "ploc:box=fast", false);
     add("box test", "fast + Moller-Trumbore", "ploc:box=fast:tri=mt", false);
-    add("leaf triangles", "indexed", "ploc", false);
+    add("leaf triangles", "SIMD blocks", "ploc", false);
+    add("leaf triangles", "indexed", "ploc:blocks=0", false);
     add("leaf triangles", "precomputed", "ploc:prim=pre", false);
     const int other_wide = default_wide == 8 ? 4 : 8;
     add("tree layout", std::to_string(default_wide) + "-wide", "ploc", false);
