@@ -73,16 +73,25 @@ public:
         previous_ = std::move(current_);   // freed untimed in release_previous()
         report_ = dyn_.update(tris);
         // The traced tree: the policy's tree made wide with its leaves packed into SIMD triangle blocks
-        // (blocks=1, the default: the vertices moved, so they are packed anew every frame), a wide copy
-        // of it, or for wide=0 a copy of the binary tree itself. A wide copy's leaf part is copied after
-        // a rebuild or swap (the policy keeps its own for the next refit); after a refit the references
-        // are unchanged, so the previous wide tree's leaf part is taken over.
+        // (blocks=1, the default), a wide copy of it, or for wide=0 a copy of the binary tree itself.
+        // After a refit the references are unchanged: the previous block tree is refitted in place
+        // (its blocks' vertices reloaded, wide_blocks.hpp), the previous wide copy's leaf part taken
+        // over. After a rebuild or swap the blocks are packed, or the leaf part copied, anew (the policy
+        // keeps its own for the next refit).
+        const bool same_refs = report_.decision == Decision::refit;
         if (spec_.blocks) {
-            if (spec_.wide == 4) current_.blocks4 = make_wide_blocks<4>(dyn_.bvh(), tris, ex_);
-            else current_.blocks8 = make_wide_blocks<8>(dyn_.bvh(), tris, ex_);
+            const auto blocks_of = [&]<int W>(auto& now, auto& before) {
+                if (same_refs && !before.empty() && before.primitive_count == tris.size()) {
+                    now = std::move(before);
+                    dynbvh::refit(now, tris, ex_);
+                } else {
+                    now = make_wide_blocks<W>(dyn_.bvh(), tris, ex_);
+                }
+            };
+            if (spec_.wide == 4) blocks_of.template operator()<4>(current_.blocks4, previous_.blocks4);
+            else blocks_of.template operator()<8>(current_.blocks8, previous_.blocks8);
             return;
         }
-        const bool same_refs = report_.decision == Decision::refit;
         const auto wide_of = [&]<int W>(auto& wide, auto& before) {
             if (!same_refs || before.empty()) {
                 wide = make_wide<W>(dyn_.bvh(), ex_);

@@ -118,6 +118,7 @@ public:
             build_morton_wide(tris);
             return;
         }
+        if (spec_.kind == Kind::refit && spec_.blocks && refit_blocks_in_place(tris)) return;
         build_binary(tris);
         // The 4- or 8-wide tree traced when spec_.wide (timed as part of the build); with blocks its
         // leaves are copied into triangle blocks and the binary tree keeps its leaf part.
@@ -137,6 +138,23 @@ public:
         auto wide = make_wide<W>(bvh, ex_);   // copies an empty leaf part
         wide.leaves() = std::move(leaves);
         return wide;
+    }
+    /// refit with blocks after its first frame: the traced block tree refitted in place (wide_blocks.hpp:
+    /// its blocks' vertices reloaded, its boxes recomputed; the topology kept), not the binary tree
+    /// refitted and packed again. The binary tree, which only the SAH column reads, is refitted by
+    /// release_previous(), outside the timed build. False (nothing done) at the first frame or a new
+    /// triangle count.
+    bool refit_blocks_in_place(std::span<const Trianglef> tris) {
+        const auto take = [&](auto& now, auto& before) {
+            if (before.empty() || before.primitive_count != tris.size()) return false;
+            now = std::move(before);
+            dynbvh::refit(now, tris, ex_);
+            return true;
+        };
+        if (!(spec_.wide == 4 ? take(current_.blocks4, previous_.blocks4) : take(current_.blocks8, previous_.blocks8))) return false;
+        current_.bvh = std::move(previous_.bvh);
+        binary_due_ = tris;   // (the runner keeps the frame's triangles alive until after release_previous)
+        return true;
     }
     void build_morton_wide(std::span<const Trianglef> tris) {
         const morton_wide::Config cfg{.morton_bits = spec_.morton_bits, .max_leaf_size = spec_.max_leaf};
@@ -191,7 +209,11 @@ public:
                 throw std::logic_error("DynAccel: not one of our builders");
         }
     }
-    void release_previous() override { previous_ = Trees<Prim>{}; }
+    void release_previous() override {
+        previous_ = Trees<Prim>{};
+        if (!binary_due_.empty()) dynbvh::refit(current_.bvh, binary_due_, ex_);   // the SAH column's tree (see refit_blocks_in_place)
+        binary_due_ = {};
+    }
 
     void trace(std::span<const Trianglef> tris, const RayGen& gen, std::span<std::uint32_t> out) override {
         current_.trace(spec_, backend_, tris, gen, out);
@@ -217,6 +239,7 @@ private:
     const Exec& ex_;
     const Backend& backend_;
     Trees<Prim> current_, previous_;
+    std::span<const Trianglef> binary_due_;   // the frame whose triangles the binary tree still has to be refitted to
 };
 
 } // namespace accel_impl
