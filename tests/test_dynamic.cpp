@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <limits>
 #include <string>
 #include <vector>
@@ -13,6 +14,7 @@
 #include <dynbvh/dynamic.hpp>
 #include <dynbvh/refit.hpp>
 #include <dynbvh/sah.hpp>
+#include <dynbvh/wide_blocks.hpp>
 
 using namespace dynbvh;
 using namespace dynbvh::test;
@@ -132,6 +134,19 @@ void expect_decision(const FrameReport& r, Decision want, Reason why, int f, std
     CHECK(same_bits(r.sah_rebuilt, rebuilt_sah));
 }
 
+/// Whether two block trees are the same, bit for bit: every node (boxes, children, counts) and every
+/// block's vertices, triangle indices and lane count (not the blocks' padding bytes).
+template <class Tree>
+bool same_block_tree(const Tree& a, const Tree& b) {
+    if (a.nodes.size() != b.nodes.size() || a.blocks.size() != b.blocks.size() || a.depth != b.depth) return false;
+    if (std::memcmp(a.nodes.data(), b.nodes.data(), a.nodes.size() * sizeof(a.nodes[0])) != 0) return false;
+    for (std::size_t i = 0; i < a.blocks.size(); ++i) {
+        const auto &x = a.blocks[i], &y = b.blocks[i];
+        if (x.count != y.count || std::memcmp(x.v, y.v, sizeof x.v) != 0 || std::memcmp(x.prim, y.prim, sizeof x.prim) != 0) return false;
+    }
+    return true;
+}
+
 } // namespace
 
 TEST_CASE("Dynamic: rebuilds exactly when the refitted SAH exceeds the threshold times the last rebuild's") {
@@ -178,6 +193,81 @@ TEST_CASE("Dynamic: rebuilds exactly when the refitted SAH exceeds the threshold
     CHECK(rebuilds >= 3);
     CHECK(refits >= 3);
     CHECK(streaks >= 3);
+}
+
+TEST_CASE("Dynamic over the traced layout: the block tree itself rebuilt and refitted in place, judged by its own SAH") {
+    using Tree = WideBvh<WideNode<float, std::uint32_t, 8>, prim::blocks<8>>;
+    const auto base = sphere(12, 24);
+    const exec::serial ex;
+    const DynamicConfig<ploc::Config> cfg{.rule = RebuildRule::sah_growth, .rebuild_threshold = 1.3, .probe_every = 0};
+    Dynamic<builder::ploc, WideNode<float, std::uint32_t, 8>, prim::blocks<8>, exec::serial> dyn(cfg, ex), from_mesh(cfg, ex);
+    static_assert(std::is_same_v<decltype(dyn)::bvh_type, Tree>);
+    // The expectation, computed independently: a block tree of our own, refitted in place each frame,
+    // rebuilt by the rule on its wide SAH.
+    Tree mine;
+    double rebuilt_sah = 0;
+    int rebuilds = 0, refits = 0;
+    const auto same_tree = [](const Tree& a, const Tree& b) { return same_block_tree(a, b); };
+    for (int f = 0; f < 24; ++f) {
+        const auto tris = f < 16 ? exploding(base, f) : scrambled(base, f);
+        const std::span<const Trianglef> s(tris);
+        // the same frame as an indexed mesh read in place: three vertices per triangle
+        std::vector<Vec3f> vertices;
+        std::vector<std::uint32_t> indices;
+        for (const Trianglef& t : tris) {
+            for (const Vec3f& p : {t.p0, t.p1, t.p2}) {
+                indices.push_back(std::uint32_t(vertices.size()));
+                vertices.push_back(p);
+            }
+        }
+        const FrameReport r = dyn.update(s);
+        const FrameReport rm = from_mesh.update(MeshView<float>(vertices, indices));
+        CAPTURE(f);
+        Decision want = Decision::rebuild;
+        double before = std::numeric_limits<double>::quiet_NaN();
+        if (f > 0) {
+            const RefitReport rep = refit_sah(mine, s, {}, ex);
+            CHECK(same_bits(rep.sah, sah_cost(mine, {}, ex)));   // the wide SAH, bit for bit
+            CHECK(rep.nonfinite == 0);
+            before = rep.sah;
+            want = before > 1.3 * rebuilt_sah ? Decision::rebuild : Decision::refit;
+        }
+        if (want == Decision::rebuild) {
+            mine = ploc::build_blocks<8, 8>(s, {}, ex);
+            rebuilt_sah = sah_cost(mine, {}, ex);
+            ++rebuilds;
+        } else {
+            ++refits;
+        }
+        CHECK(r.decision == want);
+        CHECK(r.reason == (f == 0 ? Reason::first_frame : want == Decision::rebuild ? Reason::sah_growth : Reason::none));
+        CHECK(same_bits(r.sah_before, before));
+        CHECK(same_bits(r.sah_after, want == Decision::rebuild ? rebuilt_sah : before));
+        CHECK(same_bits(r.sah_rebuilt, rebuilt_sah));
+        CHECK(same_tree(dyn.bvh(), mine));                // bit for bit: nodes and blocks
+        CHECK(rm.decision == r.decision);
+        CHECK(same_tree(from_mesh.bvh(), mine));          // the mesh view gives the span's trees
+        check_exact(dyn.bvh(), tris, 300 + std::uint64_t(f), "block tree, frame " + std::to_string(f));
+    }
+    CHECK(rebuilds >= 3);
+    CHECK(refits >= 3);
+    // A triangle turning non-finite is counted by the in-place refit and rebuilds the tree without it.
+    auto tris = exploding(base, 3);
+    tris[5].p1.x = std::numeric_limits<float>::quiet_NaN();
+    Tree copy = mine;   // the in-place refit counts it: one triangle
+    CHECK(refit_sah(copy, std::span<const Trianglef>(tris), {}, ex).nonfinite == 1);
+    const FrameReport r = dyn.update(std::span<const Trianglef>(tris));
+    CHECK(r.decision == Decision::rebuild);
+    CHECK(r.reason == Reason::finiteness);
+    CHECK(dyn.bvh().primitive_count == tris.size());
+    check_exact(dyn.bvh(), tris, 999, "block tree, a NaN vertex");
+    // The lbvh and binned-SAH policies build the same traced layout as their conversion gives.
+    Dynamic<builder::lbvh, WideNode<float, std::uint32_t, 4>, prim::blocks<4>, exec::serial> lb({}, ex);
+    const auto frame = exploding(base, 1);
+    lb.update(std::span<const Trianglef>(frame));
+    const auto want4 = make_wide_blocks<4, 4>(lbvh::build(std::span<const Trianglef>(frame), {}, ex), std::span<const Trianglef>(frame), ex);
+    CHECK(same_block_tree(lb.bvh(), want4));
+    check_exact(lb.bvh(), frame, 1001, "lbvh block tree");
 }
 
 TEST_CASE("Dynamic: the amortized rule rebuilds exactly when the estimated trace time lost reaches the rebuild cost") {

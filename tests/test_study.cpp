@@ -217,7 +217,9 @@ TEST_CASE("study: auto (refit or rebuild) records its decisions, consistent with
     // reported loss reaches its rebuild cost.
     const int rc = run_study("--scenes n-body --scale 0.02 --frames 5 --builders lbvh,refit,refit:lbvh,ploc,auto,auto:rule=sah,"
                              "auto:th=1.05:rule=sah,auto:lbvh:th=0:rule=sah,auto:lbvh:th=1e9:rule=sah,auto:async=1:rule=sah,"
-                             "auto:async=1,auto:th=1e9:rule=sah --res 32x24 --images 0 --threads 2 --no-warmup "
+                             "auto:async=1,auto:th=1e9:rule=sah,lbvh:blocks=0,refit:blocks=0,refit:lbvh:blocks=0,"
+                             "auto:lbvh:th=0:rule=sah:blocks=0,auto:lbvh:th=1e9:rule=sah:blocks=0,auto:th=1e9:rule=sah:blocks=0 "
+                             "--res 32x24 --images 0 --threads 2 --no-warmup "
                              "--out \"" + out.string() + "\"",
                              out / "log.txt");
     INFO(read_all(out / "log.txt"));
@@ -225,7 +227,9 @@ TEST_CASE("study: auto (refit or rebuild) records its decisions, consistent with
     const Json j = Json::parse(read_all(out / "study.json"));
     CHECK(j.at("builders") == Json::array({"lbvh", "refit", "refit:lbvh", "ploc", "auto", "auto:rule=sah", "auto:th=1.05:rule=sah",
                                            "auto:lbvh:th=0:rule=sah", "auto:lbvh:th=1e+09:rule=sah",
-                                           "auto:async=1:rule=sah", "auto:async=1", "auto:th=1e+09:rule=sah"}));
+                                           "auto:async=1:rule=sah", "auto:async=1", "auto:th=1e+09:rule=sah", "lbvh:blocks=0",
+                                           "refit:blocks=0", "refit:lbvh:blocks=0", "auto:lbvh:blocks=0:th=0:rule=sah",
+                                           "auto:lbvh:blocks=0:th=1e+09:rule=sah", "auto:blocks=0:th=1e+09:rule=sah"}));
     const auto group = [&](const std::string& b) -> const Json& {
         for (const auto& g : j.at("results"))
             if (g.at("builder") == b) return g;
@@ -235,7 +239,8 @@ TEST_CASE("study: auto (refit or rebuild) records its decisions, consistent with
     const std::vector<std::pair<std::string, double>> autos = {
         {"auto", 1.3}, {"auto:rule=sah", 1.3}, {"auto:th=1.05:rule=sah", 1.05}, {"auto:lbvh:th=0:rule=sah", 0},
         {"auto:lbvh:th=1e+09:rule=sah", 1e9}, {"auto:async=1:rule=sah", 1.3}, {"auto:async=1", 1.3},
-        {"auto:th=1e+09:rule=sah", 1e9}};
+        {"auto:th=1e+09:rule=sah", 1e9}, {"auto:lbvh:blocks=0:th=0:rule=sah", 0}, {"auto:lbvh:blocks=0:th=1e+09:rule=sah", 1e9},
+        {"auto:blocks=0:th=1e+09:rule=sah", 1e9}};
     const auto& hits_ref = group("ploc").at("per_frame");
     for (const auto& [name, th] : autos) {
         INFO(name);
@@ -302,16 +307,26 @@ TEST_CASE("study: auto (refit or rebuild) records its decisions, consistent with
         CHECK(counted[0] + counted[1] + counted[2] == 5);
     }
     // th=0: a rebuild every frame, the very tree lbvh builds; th=1e9: refits only, the study's refit tree.
+    // Index leaves (blocks=0): the policy's binary tree is the rebuild's or refit's binary tree, same SAH.
+    // Block trees (the default): the policy holds the traced block tree, the very one lbvh or refit traces
+    // (same bytes; its SAH is the wide tree's, so not the binary SAH column of lbvh and refit).
+    const auto at = [&](const std::string& b, std::size_t k, const char* key) { return group(b).at("per_frame").at(k).at(key); };
     for (std::size_t k = 0; k < 5; ++k) {
-        CHECK(group("auto:lbvh:th=0:rule=sah").at("per_frame").at(k).at("decision") == "rebuild");
+        INFO("frame " << k);
+        for (const char* b : {"auto:lbvh:th=0:rule=sah", "auto:lbvh:blocks=0:th=0:rule=sah"}) CHECK(at(b, k, "decision") == "rebuild");
+        if (k > 0)
+            for (const char* b : {"auto:lbvh:th=1e+09:rule=sah", "auto:lbvh:blocks=0:th=1e+09:rule=sah", "auto:th=1e+09:rule=sah"})
+                CHECK(at(b, k, "decision") == "refit");
         // (the same tree; the SAH's parallel sum may round differently from run to run)
-        CHECK(group("auto:lbvh:th=0:rule=sah").at("per_frame").at(k).at("sah").get<double>() ==
-              doctest::Approx(group("lbvh").at("per_frame").at(k).at("sah").get<double>()).epsilon(1e-12));
-        if (k > 0) CHECK(group("auto:lbvh:th=1e+09:rule=sah").at("per_frame").at(k).at("decision") == "refit");
-        CHECK(group("auto:lbvh:th=1e+09:rule=sah").at("per_frame").at(k).at("sah").get<double>() ==
-              doctest::Approx(group("refit:lbvh").at("per_frame").at(k).at("sah").get<double>()).epsilon(1e-12));
-        CHECK(group("auto:th=1e+09:rule=sah").at("per_frame").at(k).at("sah").get<double>() ==
-              doctest::Approx(group("refit").at("per_frame").at(k).at("sah").get<double>()).epsilon(1e-12));
+        CHECK(at("auto:lbvh:blocks=0:th=0:rule=sah", k, "sah").get<double>() ==
+              doctest::Approx(at("lbvh:blocks=0", k, "sah").get<double>()).epsilon(1e-12));
+        CHECK(at("auto:lbvh:blocks=0:th=1e+09:rule=sah", k, "sah").get<double>() ==
+              doctest::Approx(at("refit:lbvh:blocks=0", k, "sah").get<double>()).epsilon(1e-12));
+        CHECK(at("auto:blocks=0:th=1e+09:rule=sah", k, "sah").get<double>() ==
+              doctest::Approx(at("refit:blocks=0", k, "sah").get<double>()).epsilon(1e-12));
+        CHECK(at("auto:lbvh:th=0:rule=sah", k, "memory_bytes") == at("lbvh", k, "memory_bytes"));
+        CHECK(at("auto:lbvh:th=1e+09:rule=sah", k, "memory_bytes") == at("refit:lbvh", k, "memory_bytes"));
+        CHECK(at("auto:th=1e+09:rule=sah", k, "memory_bytes") == at("refit", k, "memory_bytes"));
     }
     // Per-frame builders have no decisions.
     CHECK(group("ploc").at("strategy").is_null());
@@ -329,8 +344,8 @@ TEST_CASE("study: auto (refit or rebuild) records its decisions, consistent with
         if (line.find(",auto") != std::string::npos) rebuild_rows += line.find(",rebuild,") != std::string::npos;
         else plain_rows += line.ends_with(",,,,,,,");
     }
-    CHECK(rebuild_rows >= 5 + 7);   // auto:lbvh:th=0 every frame, every other strategy at frame 0
-    CHECK(plain_rows == 4 * 5);   // lbvh, refit, refit:lbvh, ploc
+    CHECK(rebuild_rows >= 2 * 5 + 9);   // auto:lbvh:th=0 (both layouts) every frame, every other strategy at frame 0
+    CHECK(plain_rows == 7 * 5);   // lbvh, refit, refit:lbvh, ploc and the first three with blocks=0
     // The report: the strategies table and a frame-time-per-frame plot with every builder.
     const std::string report = read_all(out / "report.md");
     CHECK(report.find("## Strategies") != std::string::npos);
@@ -474,18 +489,21 @@ TEST_CASE("study: our wide trees trace SIMD triangle blocks by default and hit e
             for (std::size_t k = 0; k < 3; ++k)   // exact traversal: the same pixels hit whatever the leaves
                 CHECK(g->at("per_frame").at(k).at("hits") == ref->at("per_frame").at(k).at("hits"));
         }
-        // refit refits its block tree in place and its binary tree (the SAH column's) outside the timed
-        // build: the SAH of the binary tree refitted frame by frame, as the policy's own refits give it
+        // refit refits its block tree in place, the tree an always-refitting auto holds (same bytes every
+        // frame), and its binary tree (the SAH column's) outside the timed build: PLOC's SAH at frame 0,
+        // then refitted (the scene moves, so the SAH moves too: not stale)
         const Json* r = group(scene, "refit");
         const Json* a = group(scene, always_refit);
         REQUIRE(a != nullptr);
         for (std::size_t k = 0; k < 3; ++k) {
             INFO(scene << " frame " << k);
             CHECK(a->at("per_frame").at(k).at("decision") == (k == 0 ? "rebuild" : "refit"));
-            CHECK(r->at("per_frame").at(k).at("sah").get<double>() ==
-                  doctest::Approx(a->at("per_frame").at(k).at("sah").get<double>()).epsilon(1e-9));
+            CHECK(r->at("per_frame").at(k).at("memory_bytes") == a->at("per_frame").at(k).at("memory_bytes"));
         }
-        CHECK(r->at("per_frame").at(2).at("sah") != r->at("per_frame").at(0).at("sah"));   // the scene moves: not stale
+        CHECK(r->at("per_frame").at(0).at("sah").get<double>() ==
+              doctest::Approx(group(scene, "ploc")->at("per_frame").at(0).at("sah").get<double>()).epsilon(1e-12));
+        CHECK(r->at("per_frame").at(1).at("sah") != r->at("per_frame").at(0).at("sah"));
+        CHECK(r->at("per_frame").at(2).at("sah") != r->at("per_frame").at(1).at("sah"));
         // the block trees are what is traced: their memory is the blocks', not the index leaves'
         for (const char* b : {"ploc", "auto", "refit"}) {
             INFO(scene << " " << b);

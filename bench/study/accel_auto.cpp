@@ -4,6 +4,7 @@
 #include <chrono>
 #include <cmath>
 #include <stdexcept>
+#include <type_traits>
 
 #include <dynbvh/builder.hpp>
 #include <dynbvh/dynamic.hpp>
@@ -53,11 +54,14 @@ template <> builder::lbvh::config builder_config<builder::lbvh>(const BuilderSpe
     return {.morton_bits = spec.morton_bits, .leaves = leaf_config(spec)};
 }
 
-/// dynbvh::Dynamic<B> over the indexed triangles; the traced wide tree is made from its tree each frame.
-template <class Exec, class B>
+/// dynbvh::Dynamic<B> over the indexed triangles. With blocks (NodeT a WideNode, Prim prim::blocks) the
+/// policy holds the traced block tree itself: built, refitted in place and judged by its own SAH, traced
+/// as it is. Otherwise the traced wide tree is made from the policy's binary tree each frame.
+template <class Exec, class B, class NodeT, class Prim>
 class AutoAccel final : public Accel {
     using Trees = accel_impl::Trees<prim::indexed>;
-    using Dyn = Dynamic<B, Node<>, prim::indexed, Exec>;
+    using Dyn = Dynamic<B, NodeT, Prim, Exec>;
+    static constexpr bool holds_blocks = !std::is_same_v<Prim, prim::indexed>;
 
 public:
     AutoAccel(const BuilderSpec& spec, const Exec& ex, const Backend& backend)
@@ -72,38 +76,28 @@ public:
     void build(std::span<const Trianglef> tris) override {
         previous_ = std::move(current_);   // freed untimed in release_previous()
         report_ = dyn_.update(tris);
-        // The traced tree: the policy's tree made wide with its leaves packed into SIMD triangle blocks
-        // (blocks=1, the default), a wide copy of it, or for wide=0 a copy of the binary tree itself.
-        // After a refit the references are unchanged: the previous block tree is refitted in place
-        // (its blocks' vertices reloaded, wide_blocks.hpp), the previous wide copy's leaf part taken
-        // over. After a rebuild or swap the blocks are packed, or the leaf part copied, anew (the policy
-        // keeps its own for the next refit).
-        const bool same_refs = report_.decision == Decision::refit;
-        if (spec_.blocks) {
-            const auto blocks_of = [&]<int W>(auto& now, auto& before) {
-                if (same_refs && !before.empty() && before.primitive_count == tris.size()) {
-                    now = std::move(before);
-                    dynbvh::refit(now, tris, ex_);
-                } else {
-                    now = make_wide_blocks<W>(dyn_.bvh(), tris, ex_);
+        // The traced tree: the policy's own block tree (blocks=1, the default), or a wide copy of its
+        // binary tree, or for wide=0 a copy of the binary tree itself. A wide copy's leaf part is copied
+        // after a rebuild or swap (the policy keeps its own for the next refit); after a refit the
+        // references are unchanged, so the previous wide tree's leaf part is taken over.
+        if constexpr (holds_blocks) {
+            if constexpr (Dyn::bvh_type::width == 4) current_.view4 = &dyn_.bvh();
+            else current_.view8 = &dyn_.bvh();
+        } else {
+            const bool same_refs = report_.decision == Decision::refit;
+            const auto wide_of = [&]<int W>(auto& wide, auto& before) {
+                if (!same_refs || before.empty()) {
+                    wide = make_wide<W>(dyn_.bvh(), ex_);
+                    return;
                 }
+                wide = {};
+                wide.leaves() = std::move(before.leaves());
+                dynbvh::detail::collapse_to_wide<W>(dyn_.bvh(), wide, ex_);
             };
-            if (spec_.wide == 4) blocks_of.template operator()<4>(current_.blocks4, previous_.blocks4);
-            else blocks_of.template operator()<8>(current_.blocks8, previous_.blocks8);
-            return;
+            if (spec_.wide == 4) wide_of.template operator()<4>(current_.wide4, previous_.wide4);
+            else if (spec_.wide == 8) wide_of.template operator()<8>(current_.wide8, previous_.wide8);
+            else current_.bvh = dyn_.bvh();
         }
-        const auto wide_of = [&]<int W>(auto& wide, auto& before) {
-            if (!same_refs || before.empty()) {
-                wide = make_wide<W>(dyn_.bvh(), ex_);
-                return;
-            }
-            wide = {};
-            wide.leaves() = std::move(before.leaves());
-            dynbvh::detail::collapse_to_wide<W>(dyn_.bvh(), wide, ex_);
-        };
-        if (spec_.wide == 4) wide_of.template operator()<4>(current_.wide4, previous_.wide4);
-        else if (spec_.wide == 8) wide_of.template operator()<8>(current_.wide8, previous_.wide8);
-        else current_.bvh = dyn_.bvh();
     }
     void release_previous() override { previous_ = Trees{}; }
     void trace(std::span<const Trianglef> tris, const RayGen& gen, std::span<std::uint32_t> out) override {
@@ -148,14 +142,25 @@ private:
     Trees current_, previous_;
 };
 
+/// AutoAccel over builder B with the layout spec names: the policy over the 8- or 4-wide block tree
+/// (blocks), else over the binary tree.
+template <class Exec, class B>
+std::unique_ptr<Accel> auto_over(const BuilderSpec& spec, const Exec& ex, const Backend& backend) {
+    if (spec.blocks && spec.wide == 8)
+        return std::make_unique<AutoAccel<Exec, B, WideNode<float, std::uint32_t, 8>, prim::blocks<8>>>(spec, ex, backend);
+    if (spec.blocks && spec.wide == 4)
+        return std::make_unique<AutoAccel<Exec, B, WideNode<float, std::uint32_t, 4>, prim::blocks<4>>>(spec, ex, backend);
+    return std::make_unique<AutoAccel<Exec, B, Node<>, prim::indexed>>(spec, ex, backend);
+}
+
 } // namespace
 
 template <class Exec>
 std::unique_ptr<Accel> make_auto_accel(const BuilderSpec& spec, const Exec& ex, const Backend& backend) {
     if (spec.kind != Kind::dynamic) throw std::logic_error("make_auto_accel: " + spec.name() + " is not auto");
     if (spec.precomputed) throw std::invalid_argument("builder " + spec.name() + ": auto traces the indexed triangles only");
-    if (spec.over == Kind::lbvh) return std::make_unique<AutoAccel<Exec, builder::lbvh>>(spec, ex, backend);
-    return std::make_unique<AutoAccel<Exec, builder::ploc>>(spec, ex, backend);
+    if (spec.over == Kind::lbvh) return auto_over<Exec, builder::lbvh>(spec, ex, backend);
+    return auto_over<Exec, builder::ploc>(spec, ex, backend);
 }
 
 template std::unique_ptr<Accel> make_auto_accel(const BuilderSpec&, const exec::serial&, const Backend&);

@@ -24,8 +24,8 @@ decltype(auto) with_policy(const BuilderSpec& spec, const F& f) {
 /// the binary one for wide=0.
 template <class Prim, class F>
 decltype(auto) with_tree(const BuilderSpec& spec, const Trees<Prim>& t, const F& f) {
-    if (spec.blocks && spec.wide == 8) return f(t.blocks8);
-    if (spec.blocks && spec.wide == 4) return f(t.blocks4);
+    if (spec.blocks && spec.wide == 8) return f(t.view8 ? *t.view8 : t.blocks8);
+    if (spec.blocks && spec.wide == 4) return f(t.view4 ? *t.view4 : t.blocks4);
     if (spec.wide == 8) return f(t.wide8);
     if (spec.wide == 4) return f(t.wide4);
     return f(t.bvh);

@@ -89,6 +89,10 @@ struct Trees {
     wide_bvh_of<BvhT, 8> wide8;        ///< built when spec.wide == 8
     wide_blocks_bvh_of<BvhT, 4> blocks4;   ///< built instead of wide4 when spec.blocks (wide_blocks.hpp)
     wide_blocks_bvh_of<BvhT, 8> blocks8;   ///< built instead of wide8 when spec.blocks
+    /// When set, traced instead of blocks4 / blocks8: a block tree held elsewhere (auto's policy holds
+    /// the traced tree itself, dynamic.hpp).
+    const wide_blocks_bvh_of<BvhT, 4>* view4 = nullptr;
+    const wide_blocks_bvh_of<BvhT, 8>* view8 = nullptr;
 
     /// One primary ray per pixel through the tree spec.wide names, with spec's box and triangle tests.
     void trace(const BuilderSpec& spec, const Backend& backend, std::span<const Trianglef> tris, const RayGen& gen,

@@ -460,7 +460,9 @@ Table strategy_table(const StudyResults& r) {
                           std::isfinite(rf_ms) ? fmt(rf_ms) + " (" + refit_name + ")" : "-",
                           std::isfinite(best) && best > 0 ? ratio(ms / best) : "-"});
     }
-    t.notes.push_back("frame ms = mean build (refit, rebuild or swap, plus the wide-tree conversion) + trace per frame. "
+    t.notes.push_back("frame ms = mean build (refit, rebuild or swap; over block trees, the default, the policy holds the traced "
+                      "block tree itself, refitted in place, and its SAHs in the tables are that wide tree's, sah_cost of a WideBvh; "
+                      "with blocks=0 plus the wide-tree conversion of its binary tree) + trace per frame. "
                       "A strategy refits its tree every frame and rebuilds (dynbvh::Dynamic, include/dynbvh/dynamic.hpp) "
                       "once the trace time it estimates refitting has lost since its last rebuild (each frame's measured "
                       "trace time x (1 - rebuilt SAH / refitted SAH)) reaches that rebuild's time (rule=amortized, the "

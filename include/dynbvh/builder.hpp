@@ -8,6 +8,10 @@
 ///    is what that takes: a std::span or std::vector of triangles, or a MeshView, mesh.hpp),
 ///  - `build_tree(refs, cfg, ex)`: the raw topology over prepared references (boxes of anything: the
 ///    top level of a two-level scene builds over one box per instance),
+///  - `build_blocks<W, L>(tris, cfg, ex)`: the traced layout, the W-wide float tree with its leaves in
+///    SIMD blocks of L triangles (wide_blocks.hpp), for `tris` a span, vector or MeshView of float
+///    triangles: the tree make_wide_blocks<W, L>(build(tris, cfg, ex), tris, ex) gives, bit for bit
+///    (PLOC emits it directly, the others convert their wide tree),
 ///  - `name`: the study's name of the builder.
 #pragma once
 
@@ -19,6 +23,15 @@
 #include "detail/references.hpp"
 #include "lbvh.hpp"
 #include "ploc.hpp"
+#include "wide_blocks.hpp"
+
+namespace dynbvh::detail {
+/// A float triangle source as the builders' overloads take it: a MeshView as it is, anything else (a
+/// span or vector of float triangles) as a span.
+template <class Index>
+const MeshView<float, Index>& float_source(const MeshView<float, Index>& mesh) noexcept { return mesh; }
+inline std::span<const Triangle<float>> float_source(std::span<const Triangle<float>> tris) noexcept { return tris; }
+} // namespace dynbvh::detail
 
 namespace dynbvh::builder {
 
@@ -36,6 +49,11 @@ struct ploc {
     static BinaryTree build_tree(References<T>& refs, const config& cfg, const Exec& ex) {
         return dynbvh::ploc::build_tree(refs, cfg, ex);
     }
+    /// dynbvh::ploc::build_blocks: the traced layout emitted directly. O(n log n), parallel over `ex`.
+    template <int W, int L, class Exec, class Tris>
+    static WideBvh<WideNode<float, std::uint32_t, W>, prim::blocks<L>> build_blocks(const Tris& tris, const config& cfg, const Exec& ex) {
+        return dynbvh::ploc::build_blocks<W, L>(detail::float_source(tris), cfg, ex);
+    }
 };
 
 /// LBVH (Karras 2012, Apetrei 2014), lbvh.hpp: fastest build, lowest quality.
@@ -52,6 +70,12 @@ struct lbvh {
     static BinaryTree build_tree(References<T>& refs, const config& cfg, const Exec& ex) {
         return dynbvh::lbvh::build_tree(refs, cfg, ex);
     }
+    /// make_wide_blocks<L> of dynbvh::lbvh::build_wide<W>: the traced layout.
+    template <int W, int L, class Exec, class Tris>
+    static WideBvh<WideNode<float, std::uint32_t, W>, prim::blocks<L>> build_blocks(const Tris& tris, const config& cfg, const Exec& ex) {
+        const auto src = detail::float_source(tris);
+        return make_wide_blocks<L>(dynbvh::lbvh::build_wide<W, Node<float>, prim::indexed>(src, cfg, ex), src, ex);
+    }
 };
 
 /// Binned SAH (Wald 2007), binned_sah.hpp: slowest build, best quality.
@@ -67,6 +91,12 @@ struct binned_sah {
     template <class T, class Exec>
     static BinaryTree build_tree(References<T>& refs, const config& cfg, const Exec& ex) {
         return dynbvh::binned_sah::build_tree(refs, cfg, ex);
+    }
+    /// make_wide_blocks<L> of dynbvh::binned_sah::build_wide<W>: the traced layout.
+    template <int W, int L, class Exec, class Tris>
+    static WideBvh<WideNode<float, std::uint32_t, W>, prim::blocks<L>> build_blocks(const Tris& tris, const config& cfg, const Exec& ex) {
+        const auto src = detail::float_source(tris);
+        return make_wide_blocks<L>(dynbvh::binned_sah::build_wide<W, Node<float>, prim::indexed>(src, cfg, ex), src, ex);
     }
 };
 

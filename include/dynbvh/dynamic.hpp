@@ -65,6 +65,7 @@
 #include <stdexcept>
 #include <string>
 #include <thread>
+#include <type_traits>
 #include <utility>
 #include <vector>
 
@@ -75,6 +76,8 @@
 #include "mesh.hpp"
 #include "refit.hpp"
 #include "sah.hpp"
+#include "wide.hpp"
+#include "wide_blocks.hpp"
 
 namespace dynbvh {
 
@@ -160,12 +163,34 @@ struct DynamicConfig {
     SahCost cost{};
 };
 
+namespace detail {
+/// The tree a Dynamic holds: Bvh<NodeT, Prim>, or for a wide node with SIMD triangle blocks
+/// (WideNode<float, Index, W> and prim::blocks<L>) the traced layout WideBvh<NodeT, Prim> itself.
+template <class NodeT, class Prim>
+struct dynamic_tree {
+    using type = Bvh<NodeT, Prim>;
+    static constexpr bool blocks = false;
+};
+template <class S, class I, int W, int L>
+struct dynamic_tree<WideNode<S, I, W>, prim::blocks<L>> {
+    static_assert(std::is_same_v<S, float> && std::is_same_v<I, std::uint32_t>,
+                  "dynbvh::Dynamic over block trees: WideNode<float, std::uint32_t, W> (the builders' traced layout)");
+    using type = WideBvh<WideNode<S, I, W>, prim::blocks<L>>;
+    static constexpr bool blocks = true;
+};
+} // namespace detail
+
 /// Refit-or-rebuild policy over one triangle array that changes from frame to frame (see the file
 /// comment). update() costs a refit that also sums the SAH (refit_sah: O(nodes + references), no second
 /// pass), plus a build and an SAH evaluation when it rebuilds
 /// synchronously; async adds a copy of the triangles when a rebuild starts.
 /// @tparam Builder builder policy (builder.hpp): builder::ploc (default), builder::lbvh, builder::binned_sah
-/// @tparam NodeT, Prim the tree's node layout and primitive policy (bvh.hpp)
+/// @tparam NodeT, Prim the tree's node layout and primitive policy (bvh.hpp), or the traced layout:
+///         `WideNode<float, std::uint32_t, W>` with `prim::blocks<L>` holds the W-wide tree with SIMD
+///         triangle blocks (wide_blocks.hpp) itself, built by Builder::build_blocks, refitted in place
+///         (refit_sah of the block tree) and judged by the wide tree's SAH (sah_cost of a WideBvh): no
+///         binary tree to refit and convert each frame.
+///         `Dynamic<builder::ploc, WideNode<float, std::uint32_t, 8>, prim::blocks<8>>` traces bvh() directly.
 /// @tparam Exec threading backend (executor.hpp), also used by the background rebuild
 template <class Builder = builder::ploc, class NodeT = Node<>, class Prim = prim::indexed,
           class Exec = exec::default_executor>
@@ -173,7 +198,7 @@ class Dynamic {
 public:
     using scalar_type = typename NodeT::scalar_type;              ///< the tree's scalar (float by default)
     using triangle_type = Triangle<scalar_type>;                  ///< the input triangle
-    using bvh_type = Bvh<NodeT, Prim>;                            ///< the tree held across frames
+    using bvh_type = typename detail::dynamic_tree<NodeT, Prim>::type;   ///< the tree held across frames
     using config_type = DynamicConfig<typename Builder::config>;  ///< the policy's knobs
 
     /// A policy with no tree yet (the first update() builds). Throws std::invalid_argument when
@@ -440,10 +465,19 @@ private:
         return ids;
     }
 
+    /// A new tree over `tris`: the builder's tree, or its traced layout (see the class comment).
+    template <class Source>
+    static bvh_type build_tree(const Source& tris, const typename Builder::config& cfg, const Exec& ex) {
+        if constexpr (detail::dynamic_tree<NodeT, Prim>::blocks)
+            return Builder::template build_blocks<bvh_type::width, bvh_type::block_lanes>(tris, cfg, ex);
+        else
+            return Builder::template build<NodeT, Prim>(tris, cfg, ex);
+    }
+
     template <class Source>
     void rebuild_now(const Source tris, std::vector<std::uint32_t> bad) {
         const auto start = std::chrono::steady_clock::now();
-        tree_ = Builder::template build<NodeT, Prim>(tris, cfg_.builder, ex_);
+        tree_ = build_tree(tris, cfg_.builder, ex_);
         sah_ = sah_rebuilt_ = sah_cost(tree_, cfg_.cost, ex_);
         build_ms_ = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
         loss_ms_ = 0;
@@ -479,7 +513,7 @@ private:
             try {
                 const auto start = std::chrono::steady_clock::now();
                 job.emplace();
-                job->tree = Builder::template build<NodeT, Prim>(std::span<const triangle_type>(copy), cfg.builder, ex);
+                job->tree = build_tree(std::span<const triangle_type>(copy), cfg.builder, ex);
                 job->sah = sah_cost(job->tree, cfg.cost, ex);
                 job->ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
                 job->excluded_ids = std::move(bad);

@@ -37,6 +37,9 @@
 /// (morton_wide.hpp): the tree make_wide_blocks(morton_wide::build(...)) gives, packed as it is built.
 #pragma once
 
+#include <algorithm>
+#include <atomic>
+#include <bit>
 #include <cstddef>
 #include <span>
 #include <stdexcept>
@@ -52,6 +55,7 @@
 #include "executor.hpp"
 #include "mesh.hpp"
 #include "refit.hpp"
+#include "sah.hpp"
 #include "wide.hpp"
 
 namespace dynbvh {
@@ -173,14 +177,21 @@ WideBvh<WN, prim::blocks<(L == 0 ? WN::width : L)>> blocks_of_wide(WideBvh<WN, P
     return w;
 }
 
-/// The block tree refit over any triangle source: one code path.
-template <class WN, int L, class Source, class Exec>
-void refit_blocks(WideBvh<WN, prim::blocks<L>>& bvh, Source tris, const Exec& ex) {
+/// The block tree refit over any triangle source: one code path. With Count, returns the number of
+/// triangles it loaded that have a NaN or infinite vertex (refit_sah's report): each block's lanes are
+/// checked after loading, nine SIMD compares per block (TriangleBlock::nonfinite_mask). (Loading the blocks inside the wide refit's leaf pass
+/// instead, one visit per leaf for its triangles and box, measured 10-25 % slower, and a per-triangle
+/// check while loading 15 %: dynbvh-bench-build BM_refit_wide8_blocks, 2 threads.)
+template <bool Count, class WN, int L, class Source, class Exec>
+std::size_t refit_blocks(WideBvh<WN, prim::blocks<L>>& bvh, Source tris, const Exec& ex) {
     check_triangles(bvh, tris.size(), "refit");
-    if (bvh.empty()) return;
+    if (bvh.empty()) return 0;
+    std::atomic<std::size_t> nonfinite{0};   // (touched only where a block holds one: almost never)
     ex.for_each(0, bvh.blocks.size(), [&](std::size_t i) {
         TriangleBlock<L>& b = bvh.blocks[i];
         for (int k = 0; k < int(b.count); ++k) b.set(k, tris[b.prim[k]], b.prim[k]);
+        if constexpr (Count)
+            if (const unsigned bad = b.nonfinite_mask(); bad != 0) nonfinite.fetch_add(std::size_t(std::popcount(bad)), std::memory_order_relaxed);
     }, 1024);
     refit_wide_boxes(bvh, [&](const WN& node, int k) {
         AABB<float> box;
@@ -191,6 +202,7 @@ void refit_blocks(WideBvh<WN, prim::blocks<L>>& bvh, Source tris, const Exec& ex
         }
         return box;
     }, ex);
+    return nonfinite.load(std::memory_order_relaxed);
 }
 
 } // namespace detail
@@ -241,14 +253,35 @@ WideBvh<WN, prim::blocks<(L == 0 ? WN::width : L)>> make_wide_blocks(WideBvh<WN,
 /// tree it was packed from, bit for bit (boxes, blocks, hits). O(nodes + references), parallel.
 template <class WN, int L, class Exec = exec::default_executor>
 void refit(WideBvh<WN, prim::blocks<L>>& bvh, std::span<const Triangle<float>> tris, const Exec& ex = {}) {
-    detail::refit_blocks(bvh, tris, ex);
+    detail::refit_blocks<false>(bvh, tris, ex);
 }
 
 /// The same from an indexed mesh read in place (mesh.hpp); the same blocks and boxes as from
 /// make_triangles' array, bit for bit.
 template <class WN, int L, class Index, class Exec = exec::default_executor>
 void refit(WideBvh<WN, prim::blocks<L>>& bvh, const MeshView<float, Index>& mesh, const Exec& ex = {}) {
-    detail::refit_blocks(bvh, mesh, ex);
+    detail::refit_blocks<false>(bvh, mesh, ex);
+}
+
+/// refit(blocks, tris, ex) that also returns the refitted tree's SAH (sah_cost of the wide tree, sah.hpp:
+/// the same value, bit for bit) and counts the non-finite triangles it loaded (while loading them):
+/// what the refit-or-rebuild policy needs each frame when it holds the traced tree itself
+/// (Dynamic over a WideNode with prim::blocks, dynamic.hpp). The SAH is one pass over the nodes after
+/// the refit. Same errors as refit.
+template <class WN, int L, class Exec = exec::default_executor>
+RefitReport refit_sah(WideBvh<WN, prim::blocks<L>>& bvh, std::span<const Triangle<float>> tris, const SahCost& cost = {},
+                      const Exec& ex = {}) {
+    const std::size_t nonfinite = detail::refit_blocks<true>(bvh, tris, ex);
+    return {sah_cost(bvh, cost, ex), nonfinite};
+}
+
+/// refit_sah of a block tree from an indexed mesh read in place (mesh.hpp): the same blocks, boxes and
+/// report as from make_triangles' array.
+template <class WN, int L, class Index, class Exec = exec::default_executor>
+RefitReport refit_sah(WideBvh<WN, prim::blocks<L>>& bvh, const MeshView<float, Index>& mesh, const SahCost& cost = {},
+                      const Exec& ex = {}) {
+    const std::size_t nonfinite = detail::refit_blocks<true>(bvh, mesh, ex);
+    return {sah_cost(bvh, cost, ex), nonfinite};
 }
 
 } // namespace dynbvh

@@ -104,6 +104,29 @@ struct alignas(64) TriangleBlock {
     }
     /// Bit k set for each valid lane.
     unsigned valid_mask() const noexcept { return count >= 32 ? ~0u : (1u << count) - 1u; }
+    /// Bit k set for each valid lane whose triangle has a NaN or infinite vertex: |x| <= FLT_MAX fails
+    /// for exactly those, nine compares per lane group (SIMD where compiled in).
+    unsigned nonfinite_mask() const noexcept {
+        unsigned finite = 0;
+#if defined(DYNBVH_SSE)
+        using V = lanes_for<L>;
+        const auto big = V::set1(std::numeric_limits<float>::max());
+        for (int h = 0; h < L; h += V::n) {
+            unsigned f = ~0u;
+            for (int i = 0; i < 3; ++i)
+                for (int a = 0; a < 3; ++a) f &= V::bits(V::le(V::abs(V::load(&v[i][a][h])), big));
+            finite |= (f & ((1u << V::n) - 1u)) << h;
+        }
+#else
+        for (int k = 0; k < L; ++k) {
+            bool f = true;
+            for (int i = 0; i < 3; ++i)
+                for (int a = 0; a < 3; ++a) f &= std::abs(v[i][a][k]) <= std::numeric_limits<float>::max();
+            finite |= unsigned(f) << k;
+        }
+#endif
+        return valid_mask() & ~finite;
+    }
 };
 
 static_assert(sizeof(TriangleBlock<4>) == 192 && sizeof(TriangleBlock<8>) == 384);
