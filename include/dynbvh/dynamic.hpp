@@ -8,8 +8,17 @@
 ///       auto hit = dynbvh::intersect(scene.bvh(), tris, ray);
 ///   }
 /// @endcode
-/// Each frame the tree is refitted and its SAH summed in the same passes (refit_sah, refit.hpp). Two rules decide when
-/// it is rebuilt instead (`DynamicConfig::rule`):
+/// The tree can be the traced layout itself (the W-wide tree with SIMD triangle blocks, wide_blocks.hpp),
+/// so that nothing is converted per frame:
+/// @code
+///   dynbvh::Dynamic<dynbvh::builder::ploc, dynbvh::WideNode<float, std::uint32_t, 8>, dynbvh::prim::blocks<8>> scene;
+///   scene.update(tris);                            // build_blocks, or the block tree refitted in place
+///   auto hit = dynbvh::intersect(scene.bvh(), tris, ray);   // (packets too: packet.hpp)
+/// @endcode
+/// Each frame the tree is refitted and its SAH summed in the same passes (refit_sah, refit.hpp; for a
+/// block tree wide_blocks.hpp's refit_sah: blocks reloaded, boxes, then the wide tree's SAH, sah.hpp, in
+/// one more pass over the nodes; the rules compare that SAH with the block tree's own after its
+/// rebuild). Two rules decide when it is rebuilt instead (`DynamicConfig::rule`):
 ///  - `amortized` (the default, once the caller reports trace times with record_trace_ms()): trace time
 ///    is taken as growing with the SAH (Goldsmith & Salmon 1987; MacDonald & Booth 1990) as T ~ s^e, so of
 ///    a frame traced in T ms with SAH s, T (1 - (s_rebuilt / s)^e) is the time the refitted tree lost
