@@ -39,19 +39,12 @@ const char* reason_name(Reason r) {
     return "?";
 }
 
-/// The policy's leaf collapse: the spec's largest leaf, with block_leaves' costs (fuller leaves) when
-/// the traced tree has SIMD triangle blocks, as the per-frame rebuilds build theirs (dyn_accel.hpp).
-LeafConfig leaf_config(const BuilderSpec& spec) {
-    LeafConfig leaves{.max_leaf_size = spec.max_leaf};
-    if (spec.blocks) leaves.cost = block_leaves.cost;
-    return leaves;
-}
 template <class B> typename B::config builder_config(const BuilderSpec& spec);
 template <> builder::ploc::config builder_config<builder::ploc>(const BuilderSpec& spec) {
-    return {.radius = spec.radius, .morton_bits = spec.morton_bits, .leaves = leaf_config(spec)};
+    return {.radius = spec.radius, .morton_bits = spec.morton_bits, .leaves = accel_impl::leaf_config(spec)};
 }
 template <> builder::lbvh::config builder_config<builder::lbvh>(const BuilderSpec& spec) {
-    return {.morton_bits = spec.morton_bits, .leaves = leaf_config(spec)};
+    return {.morton_bits = spec.morton_bits, .leaves = accel_impl::leaf_config(spec)};
 }
 
 /// dynbvh::Dynamic<B> over the indexed triangles. With blocks (NodeT a WideNode, Prim prim::blocks) the

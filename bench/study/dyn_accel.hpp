@@ -110,6 +110,15 @@ struct Trees {
 extern template struct Trees<prim::indexed>;
 extern template struct Trees<prim::copied>;
 
+/// The leaf collapse of our builders' binary trees for `spec`: its largest leaf, with block_leaves' costs
+/// (fuller leaves) when the traced tree has SIMD triangle blocks. The per-frame rebuilds and auto's
+/// policy both build with it.
+inline LeafConfig leaf_config(const BuilderSpec& spec) {
+    LeafConfig leaves{.max_leaf_size = spec.max_leaf};
+    if (spec.blocks) leaves.cost = block_leaves.cost;   // fuller leaves for SIMD blocks
+    return leaves;
+}
+
 /// Our builders on executor Exec with primitive policy Prim.
 template <class Exec, class Prim>
 class DynAccel final : public Accel {
@@ -173,8 +182,7 @@ public:
         }
     }
     void build_binary(std::span<const Trianglef> tris) {
-        LeafConfig leaves{.max_leaf_size = spec_.max_leaf};
-        if (spec_.blocks) leaves.cost = block_leaves.cost;   // fuller leaves for SIMD blocks
+        const LeafConfig leaves = leaf_config(spec_);
         auto& bvh = current_.bvh;
         switch (spec_.kind) {
             case Kind::lbvh:

@@ -25,14 +25,6 @@
 #include "ploc.hpp"
 #include "wide_blocks.hpp"
 
-namespace dynbvh::detail {
-/// A float triangle source as the builders' overloads take it: a MeshView as it is, anything else (a
-/// span or vector of float triangles) as a span.
-template <class Index>
-const MeshView<float, Index>& float_source(const MeshView<float, Index>& mesh) noexcept { return mesh; }
-inline std::span<const Triangle<float>> float_source(std::span<const Triangle<float>> tris) noexcept { return tris; }
-} // namespace dynbvh::detail
-
 namespace dynbvh::builder {
 
 /// PLOC (Meister & Bittner 2018), ploc.hpp: the default of every policy taking a builder.
@@ -52,7 +44,7 @@ struct ploc {
     /// dynbvh::ploc::build_blocks: the traced layout emitted directly. O(n log n), parallel over `ex`.
     template <int W, int L, class Exec, class Tris>
     static WideBvh<WideNode<float, std::uint32_t, W>, prim::blocks<L>> build_blocks(const Tris& tris, const config& cfg, const Exec& ex) {
-        return dynbvh::ploc::build_blocks<W, L>(detail::float_source(tris), cfg, ex);
+        return dynbvh::ploc::build_blocks<W, L>(tris, cfg, ex);
     }
 };
 
@@ -73,8 +65,7 @@ struct lbvh {
     /// make_wide_blocks<L> of dynbvh::lbvh::build_wide<W>: the traced layout.
     template <int W, int L, class Exec, class Tris>
     static WideBvh<WideNode<float, std::uint32_t, W>, prim::blocks<L>> build_blocks(const Tris& tris, const config& cfg, const Exec& ex) {
-        const auto src = detail::float_source(tris);
-        return make_wide_blocks<L>(dynbvh::lbvh::build_wide<W, Node<float>, prim::indexed>(src, cfg, ex), src, ex);
+        return make_wide_blocks<L>(dynbvh::lbvh::build_wide<W, Node<float>, prim::indexed>(tris, cfg, ex), tris, ex);
     }
 };
 
@@ -95,8 +86,7 @@ struct binned_sah {
     /// make_wide_blocks<L> of dynbvh::binned_sah::build_wide<W>: the traced layout.
     template <int W, int L, class Exec, class Tris>
     static WideBvh<WideNode<float, std::uint32_t, W>, prim::blocks<L>> build_blocks(const Tris& tris, const config& cfg, const Exec& ex) {
-        const auto src = detail::float_source(tris);
-        return make_wide_blocks<L>(dynbvh::binned_sah::build_wide<W, Node<float>, prim::indexed>(src, cfg, ex), src, ex);
+        return make_wide_blocks<L>(dynbvh::binned_sah::build_wide<W, Node<float>, prim::indexed>(tris, cfg, ex), tris, ex);
     }
 };
 
