@@ -516,6 +516,47 @@ TEST_CASE("study: our wide trees trace SIMD triangle blocks by default and hit e
     CHECK(read_all(out / "bad.txt").find("two-level's objects always trace blocks") != std::string::npos);
 }
 
+TEST_CASE("study: the wide trees built directly have the SAH and hits of the same builder's binary tree") {
+    // lbvh, ploc, kbvh and binned-sah build their traced wide trees directly (no binary tree converted),
+    // and the SAH column then comes from the same tree's binary form built outside the timing: it must
+    // equal, to the bit, the SAH of the binary tree wide=0 traces (built and timed the old way), frame by
+    // frame, with the same hits.
+    const auto out = tmp / "direct_wide";
+    std::filesystem::remove_all(out);
+    std::filesystem::create_directories(out);
+    const std::vector<std::string> kinds = {"lbvh", "ploc", "kbvh", "binned-sah"};
+    std::string list;
+    for (const auto& k : kinds) list += (list.empty() ? "" : ",") + k + ":blocks=0," + k + ":wide=4:blocks=0," + k + ":wide=0";
+    const int rc = run_study("--scenes cloth-ball,breaking --scale 0.03 --frames 3 --builders " + list +
+                             " --res 40x24 --images 0 --threads 2 --no-warmup --out \"" + out.string() + "\"",
+                             out / "log.txt");
+    INFO(read_all(out / "log.txt"));
+    REQUIRE(rc == 0);
+    const Json j = Json::parse(read_all(out / "study.json"));
+    const auto group = [&](const std::string& scene, const std::string& b) -> const Json& {
+        for (const auto& g : j.at("results"))
+            if (g.at("scene") == scene && g.at("builder") == b) return g;
+        FAIL("no group " << scene << " " << b);
+        throw;
+    };
+    for (const char* scene : {"cloth-ball", "breaking"})
+        for (const auto& k : kinds) {
+            const Json& binary = group(scene, k + ":wide=0");
+            for (const std::string& wide : {k + ":blocks=0", k + ":wide=4:blocks=0"}) {
+                const Json& g = group(scene, wide);
+                REQUIRE(g.at("per_frame").size() == 3);
+                for (std::size_t f = 0; f < 3; ++f) {
+                    INFO(scene << " " << wide << " frame " << f);
+                    const Json& a = g.at("per_frame").at(f);
+                    const Json& b = binary.at("per_frame").at(f);
+                    CHECK(a.at("sah").get<double>() > 1);
+                    CHECK(a.at("sah").get<double>() == b.at("sah").get<double>());
+                    CHECK(a.at("hits") == b.at("hits"));
+                }
+            }
+        }
+}
+
 TEST_CASE("study: bad input fails with a message naming it") {
     const auto out = tmp / "bad";
     std::filesystem::create_directories(out);

@@ -7,6 +7,7 @@
 #include <memory>
 #include <span>
 #include <stdexcept>
+#include <type_traits>
 
 #include <dynbvh/binned_sah.hpp>
 #include <dynbvh/bvh.hpp>
@@ -83,8 +84,8 @@ namespace accel_impl {
 template <class Prim>
 struct Trees {
     using BvhT = Bvh<Node<>, Prim>;
-    BvhT bvh;                          ///< always built (refit and the SAH column use it); its leaf part
-                                       ///< moves to the wide tree when there is one
+    BvhT bvh;                          ///< refit's tree (the SAH column reads it) and wide=0's traced one;
+                                       ///< its leaf part moves to the wide tree when there is one
     wide_bvh_of<BvhT, 4> wide4;        ///< built when spec.wide == 4
     wide_bvh_of<BvhT, 8> wide8;        ///< built when spec.wide == 8
     wide_blocks_bvh_of<BvhT, 4> blocks4;   ///< built instead of wide4 when spec.blocks (wide_blocks.hpp)
@@ -127,14 +128,24 @@ public:
 
     void build(std::span<const Trianglef> tris) override {
         previous_ = std::move(current_);   // freed untimed in release_previous()
+        sah_due_ = {};
         if (spec_.kind == Kind::morton_wide) {   // the traced tree only, no binary tree
             build_morton_wide(tris);
             return;
         }
         if (spec_.kind == Kind::refit && spec_.blocks && refit_blocks_in_place(tris)) return;
+        if (spec_.kind != Kind::refit && spec_.wide != 0) {
+            // The traced tree straight from the builder (no binary tree built and converted); sah()
+            // builds the same tree's binary form, untimed, for the thesis's measure.
+            if (spec_.wide == 4) build_traced<4>(tris, current_.wide4, current_.blocks4);
+            if (spec_.wide == 8) build_traced<8>(tris, current_.wide8, current_.blocks8);
+            sah_due_ = tris;   // (the runner keeps the frame's triangles alive until after sah())
+            return;
+        }
         build_binary(tris);
-        // The 4- or 8-wide tree traced when spec_.wide (timed as part of the build); with blocks its
-        // leaves are copied into triangle blocks and the binary tree keeps its leaf part.
+        // refit's first frame, and refit without blocks: the 4- or 8-wide tree converted from the
+        // binary one it refits (timed as part of the build); with blocks its leaves are copied into
+        // triangle blocks and the binary tree keeps its leaf part.
         if (spec_.blocks) {
             if (spec_.wide == 4) current_.blocks4 = make_wide_blocks<4>(current_.bvh, tris, ex_);
             if (spec_.wide == 8) current_.blocks8 = make_wide_blocks<8>(current_.bvh, tris, ex_);
@@ -142,6 +153,58 @@ public:
         }
         if (spec_.wide == 4) current_.wide4 = take_wide<4>(current_.bvh);
         if (spec_.wide == 8) current_.wide8 = take_wide<8>(current_.bvh);
+    }
+    /// The traced W-wide tree built directly: with SIMD triangle blocks when spec_.blocks (ploc emits
+    /// them, the others pack their wide tree's leaves), else with index leaves. Bit for bit the tree
+    /// the binary build and make_wide(_blocks) give (the builders' own tests check it).
+    template <int W>
+    void build_traced(std::span<const Trianglef> tris, wide_bvh_of<typename Trees<Prim>::BvhT, W>& wide,
+                      wide_blocks_bvh_of<typename Trees<Prim>::BvhT, W>& blocks) {
+        if constexpr (std::is_same_v<Prim, prim::indexed>) {
+            if (spec_.blocks && spec_.kind == Kind::ploc) {
+                blocks = ploc::build_blocks<W>(tris, ploc_config(), ex_);
+                return;
+            }
+        }
+        if (spec_.blocks) blocks = make_wide_blocks(build_fresh<W>(tris), tris, ex_);
+        else wide = build_fresh<W>(tris);
+    }
+    /// A fresh tree from spec_.kind's builder (lbvh, ploc, kbvh or binned-sah): the binary Bvh for
+    /// W = 0, else the builder's W-wide tree.
+    template <int W>
+    auto build_fresh(std::span<const Trianglef> tris) const {
+        using NodeT = Node<>;
+        const LeafConfig leaves = leaf_config(spec_);
+        // (the wide builds are generic lambdas so that W = 0 never instantiates them)
+        const auto pick = [&](auto binary, auto wide) {
+            if constexpr (W == 0) return binary();
+            else return wide(std::integral_constant<int, W>{});
+        };
+        switch (spec_.kind) {
+            case Kind::lbvh: {
+                const lbvh::Config cfg{.morton_bits = spec_.morton_bits, .leaves = leaves};
+                return pick([&] { return lbvh::build<NodeT, Prim>(tris, cfg, ex_); },
+                            [&](auto w) { return lbvh::build_wide<w(), NodeT, Prim>(tris, cfg, ex_); });
+            }
+            case Kind::ploc:
+                return pick([&] { return ploc::build<NodeT, Prim>(tris, ploc_config(), ex_); },
+                            [&](auto w) { return ploc::build_wide<w(), NodeT, Prim>(tris, ploc_config(), ex_); });
+            case Kind::kbvh: {
+                const kbvh::Config<kbvh::with_ploc> cfg{.split = {.beta = spec_.beta}, .builder = ploc_config()};
+                return pick([&] { return kbvh::build<NodeT, Prim>(tris, cfg, ex_); },
+                            [&](auto w) { return kbvh::build_wide<w(), NodeT, Prim>(tris, cfg, ex_); });
+            }
+            case Kind::binned_sah: {
+                const binned_sah::Config cfg{.bins = spec_.bins, .leaves = leaves};
+                return pick([&] { return binned_sah::build<NodeT, Prim>(tris, cfg, ex_); },
+                            [&](auto w) { return binned_sah::build_wide<w(), NodeT, Prim>(tris, cfg, ex_); });
+            }
+            default:
+                throw std::logic_error("DynAccel: not one of our builders");
+        }
+    }
+    ploc::Config ploc_config() const {
+        return {.radius = spec_.radius, .morton_bits = spec_.morton_bits, .leaves = leaf_config(spec_)};
     }
     /// The wide tree over `bvh`'s leaf part, which it takes over (one copy of the references per frame);
     /// `bvh` keeps its nodes for the SAH column and gets the leaf part back before a refit.
@@ -181,44 +244,23 @@ public:
             else current_.wide8 = std::move(w);
         }
     }
+    /// The binary tree: refit's (refitted, or built by its builder at the first frame or a new
+    /// triangle count, as auto's), or a fresh one for the binary trace (wide=0).
     void build_binary(std::span<const Trianglef> tris) {
-        const LeafConfig leaves = leaf_config(spec_);
         auto& bvh = current_.bvh;
-        switch (spec_.kind) {
-            case Kind::lbvh:
-                bvh = lbvh::build<Node<>, Prim>(tris, {.morton_bits = spec_.morton_bits, .leaves = leaves}, ex_);
-                break;
-            case Kind::refit:
-                if (!previous_.wide4.empty()) previous_.bvh.leaves() = std::move(previous_.wide4.leaves());
-                if (!previous_.wide8.empty()) previous_.bvh.leaves() = std::move(previous_.wide8.leaves());
-                if (previous_.bvh.empty() || previous_.bvh.primitive_count != tris.size()) {
-                    // the first frame (or a new triangle count): built by refit's builder, as auto's
-                    if (spec_.over == Kind::lbvh)
-                        bvh = lbvh::build<Node<>, Prim>(tris, {.morton_bits = spec_.morton_bits, .leaves = leaves}, ex_);
-                    else
-                        bvh = ploc::build<Node<>, Prim>(
-                            tris, {.radius = spec_.radius, .morton_bits = spec_.morton_bits, .leaves = leaves}, ex_);
-                } else {
-                    bvh = std::move(previous_.bvh);
-                    dynbvh::refit(bvh, tris, ex_);
-                }
-                break;
-            case Kind::ploc:
-                bvh = ploc::build<Node<>, Prim>(
-                    tris, {.radius = spec_.radius, .morton_bits = spec_.morton_bits, .leaves = leaves}, ex_);
-                break;
-            case Kind::kbvh: {
-                const kbvh::Config<kbvh::with_ploc> cfg{
-                    .split = {.beta = spec_.beta},
-                    .builder = {.radius = spec_.radius, .morton_bits = spec_.morton_bits, .leaves = leaves}};
-                bvh = kbvh::build<Node<>, Prim>(tris, cfg, ex_);
-                break;
-            }
-            case Kind::binned_sah:
-                bvh = binned_sah::build<Node<>, Prim>(tris, {.bins = spec_.bins, .leaves = leaves}, ex_);
-                break;
-            default:
-                throw std::logic_error("DynAccel: not one of our builders");
+        if (spec_.kind != Kind::refit) {
+            bvh = build_fresh<0>(tris);
+            return;
+        }
+        if (!previous_.wide4.empty()) previous_.bvh.leaves() = std::move(previous_.wide4.leaves());
+        if (!previous_.wide8.empty()) previous_.bvh.leaves() = std::move(previous_.wide8.leaves());
+        if (!previous_.bvh.empty() && previous_.bvh.primitive_count == tris.size()) {
+            bvh = std::move(previous_.bvh);
+            dynbvh::refit(bvh, tris, ex_);
+        } else if (spec_.over == Kind::lbvh) {
+            bvh = lbvh::build<Node<>, Prim>(tris, {.morton_bits = spec_.morton_bits, .leaves = leaf_config(spec_)}, ex_);
+        } else {
+            bvh = ploc::build<Node<>, Prim>(tris, ploc_config(), ex_);
         }
     }
     void release_previous() override {
@@ -231,9 +273,13 @@ public:
         current_.trace(spec_, backend_, tris, gen, out);
     }
     /// The binary tree's SAH (the thesis's measure); none for morton-wide, which builds no binary tree.
+    /// For a tree built directly into the traced layout, that of the same tree's binary form, built here,
+    /// outside the timed build and trace (the builders give the same tree either way).
     std::optional<double> sah() const override {
         if (spec_.kind == Kind::morton_wide) return std::nullopt;
-        return sah_cost(current_.bvh, SahCost{.ct = 3, .ci = 2}, ex_);
+        constexpr SahCost thesis{.ct = 3, .ci = 2};
+        if (!sah_due_.empty()) return sah_cost(build_fresh<0>(sah_due_), thesis, ex_);
+        return sah_cost(current_.bvh, thesis, ex_);
     }
     std::optional<std::size_t> memory_bytes() const override { return current_.memory_bytes(spec_); }
     /// Single-ray queries (effect rays) go through the same tree as trace().
@@ -252,6 +298,7 @@ private:
     const Backend& backend_;
     Trees<Prim> current_, previous_;
     std::span<const Trianglef> binary_due_;   // the frame whose triangles the binary tree still has to be refitted to
+    std::span<const Trianglef> sah_due_;      // the frame whose traced tree was built directly (see sah())
 };
 
 } // namespace accel_impl
