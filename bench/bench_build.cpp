@@ -4,7 +4,7 @@
 // 99k long thin triangles of scenes/lattice.hpp. The traced layout (BM_*_blocks: 8-wide nodes with
 // leaves in SIMD blocks of 8) from each builder, and from morton_wide (the wide tree straight from the
 // sorted Morton codes; BM_morton_wide8_blocks: morton_wide::build_blocks, leaves packed as they are made;
-// BM_ploc_r5_blocks: ploc::build_blocks, the tree of BM_ploc_r5_wide8_blocks in one step). Each builder three ways: the
+// BM_ploc_r5_blocks: ploc::build_blocks, the tree of BM_ploc_r5_wide8_blocks in one step; BM_kbvh_blocks likewise). Each builder three ways: the
 // binary Bvh (BM_<builder>), binary + make_wide<8> (BM_<builder>_then_wide8) and direct wide emission
 // build_wide<8> (BM_<builder>_wide8; the same tree, the 8-wide layout the study traces); refit of the
 // binary and of the 8-wide LBVH tree (BM_refit_binary, BM_refit_wide8) beside Embree's REFIT.
@@ -116,6 +116,13 @@ void BM_kbvh_wide8_blocks(benchmark::State& s) {
         return make_wide_blocks(kbvh::build_wide<8>(t, c, ex), t, ex);
     });
 }
+void BM_kbvh_blocks(benchmark::State& s) {   // the same tree in one step (kbvh::build_blocks)
+    run_dynbvh(s, [](const auto& t, const auto& ex) {
+        kbvh::Config<> c;
+        c.builder.leaves = block_leaves;
+        return kbvh::build_blocks(std::span<const Trianglef>(t), c, ex);
+    });
+}
 
 // Refit in place of an LBVH over the same frame (the work does not depend on how far vertices moved).
 template <class Tree>
@@ -189,6 +196,7 @@ BENCHMARK(BM_lbvh_wide8_blocks) DYNBVH_SCENES;
 BENCHMARK(BM_ploc_r5_wide8_blocks) DYNBVH_SCENES;
 BENCHMARK(BM_ploc_r5_blocks) DYNBVH_SCENES;
 BENCHMARK(BM_kbvh_wide8_blocks) DYNBVH_SCENES;
+BENCHMARK(BM_kbvh_blocks) DYNBVH_SCENES;
 BENCHMARK(BM_embree_medium) DYNBVH_SCENES;
 BENCHMARK(BM_embree_refit) DYNBVH_SCENES;
 BENCHMARK(BM_refit_binary) DYNBVH_SCENES;

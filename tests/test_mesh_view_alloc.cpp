@@ -184,7 +184,7 @@ TEST_CASE("mesh view alloc: refit frames of Dynamic::update(view) allocate nothi
 
 TEST_CASE("mesh view alloc: rebuild frames allocate nothing per triangle beyond the tree" * doctest::skip(skip_counting)) {
     // Large enough that every per-triangle array (the tree's and the builder's) is above the scratch cache's
-    // 1 MiB threshold: those come back from the cache after warm-up (detail/scratch.hpp).
+    // threshold (min_cached): those come back from the cache after warm-up (detail/scratch.hpp).
     Sphere s(256, 520);   // 266240 triangles (not 2^18: (n - 1) * 4 bytes would fall just below the cache threshold)
     const MeshView<float> view = s.view();
     const std::size_t n = view.size();

@@ -7,13 +7,16 @@
 #include <dynbvh/presplit.hpp>
 #include <dynbvh/sah.hpp>
 #include <dynbvh/validate.hpp>
+#include <dynbvh/wide_blocks.hpp>
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <limits>
 #include <random>
 #include <vector>
 
+#include "robust_support.hpp"
 #include "support.hpp"
 
 using namespace dynbvh;
@@ -333,4 +336,52 @@ TEST_CASE("kbvh: presplitting lowers SAH on long thin diagonal triangles") {
     CHECK(lbvh30 < lbvh5);
     // beta = 0 is exactly the plain builder.
     CHECK(ploc0 == sah_cost(ploc::build(std::span<const Tri>(tris), {}, exec::serial{}), {.ct = 3, .ci = 2}));
+}
+
+TEST_CASE("kbvh: build, build_wide and build_blocks give the tree of the plain path (split, build_tree, emission), bit for bit") {
+    // kbvh's builds take the builder's node facts as it makes them (PLOC) and pack the blocks during the
+    // wide emission: the trees of make_references + presplit::split + build_tree + emit_bvh /
+    // emit_wide_bvh / make_wide_blocks, on every executor, and exact against brute force.
+    auto tris = diagonal_slivers(3000, 57);
+    tris[17].p1.x = std::numeric_limits<float>::quiet_NaN();   // left out and counted, as in the plain path
+    const std::span<const Tri> ts(tris);
+    const auto plain = [&]<class Builder>(const kbvh::Config<Builder>& cfg) {
+        const exec::serial s;
+        auto refs = make_references(ts, s);
+        refs = presplit::split(refs, ts, cfg.split, s);
+        const BinaryTree tree = Builder::build_tree(refs, cfg.builder, s);
+        auto w8 = emit_wide_bvh<8, Node<>, prim::indexed>(tree, refs, ts, cfg.builder.leaves, s);
+        return std::pair{emit_bvh<Node<>, prim::indexed>(tree, refs, ts, cfg.builder.leaves, s), std::move(w8)};
+    };
+    const auto check_all = [&](const auto& cfg) {
+        const auto [bin, w8] = plain(cfg);
+        const auto b88 = make_wide_blocks(w8, ts, exec::serial{});
+        REQUIRE(b88.nodes.size() > 50);
+        CHECK(bin.excluded == 1);
+        test::for_each_executor([&](const auto& ex) {
+            CAPTURE(test::executor_name<std::remove_cvref_t<decltype(ex)>>());
+            const auto b = kbvh::build(ts, cfg, ex);
+            CHECK((b.nodes.size() == bin.nodes.size() && b.prim_ids == bin.prim_ids && b.depth == bin.depth && b.excluded == bin.excluded &&
+                   std::memcmp(b.nodes.data(), bin.nodes.data(), b.nodes.size() * sizeof(b.nodes[0])) == 0));
+            const auto w = kbvh::build_wide<8>(ts, cfg, ex);
+            CHECK((w.nodes.size() == w8.nodes.size() && w.prim_ids == w8.prim_ids && w.depth == w8.depth &&
+                   std::memcmp(w.nodes.data(), w8.nodes.data(), w.nodes.size() * sizeof(w.nodes[0])) == 0));
+            const auto k = kbvh::build_blocks(ts, cfg, ex);
+            CHECK(test::block_difference(k, b88) == "");
+            CHECK(test::block_difference(kbvh::build_blocks<8, 4>(ts, cfg, ex), make_wide_blocks<4>(w8, ts, exec::serial{})) == "");
+        });
+        const auto k = kbvh::build_blocks(ts, cfg);
+        const test::RaySet set = test::adversarial_rays(ts, test::sanitizer_scaled(60), 23);
+        const test::Reference ref = test::brute_force<trace::robust>(ts, set.rays);
+        const test::Disagreements r = test::compare_with<trace::robust>(k, ts, set, ref);
+        CHECK_MESSAGE(r.total == 0, r.total << " disagreements with brute force (" << test::by_kind(r) << "), first: " << r.first);
+    };
+    SUBCASE("PLOC underneath (facts made while clustering)") {
+        kbvh::Config<kbvh::with_ploc> cfg{.split = {.beta = 0.3f}};
+        cfg.builder.leaves = block_leaves;
+        check_all(cfg);
+    }
+    SUBCASE("LBVH underneath (facts from compute_node_info)") {
+        check_all(kbvh::Config<kbvh::with_lbvh>{.split = {.beta = 0.1f}});
+    }
 }

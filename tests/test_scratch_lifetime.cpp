@@ -1,5 +1,5 @@
 // Scratch cache lifetime (scratch.hpp, issue 16.1): objects of static storage duration that hold
-// scratch blocks (>= 1 MiB, the cached size) are destroyed at exit in any order relative to the cache.
+// scratch blocks (>= ScratchPool::min_cached, the cached size) are destroyed at exit in any order relative to the cache.
 // The objects below are constructed before the cache is first used (namespace scope, empty), so with
 // a function-local cache they are destroyed after it and return their blocks to a dead object: under
 // AddressSanitizer that is a heap-use-after-free at exit, i.e. this program's exit status is the check
@@ -30,7 +30,7 @@ WideBvh<> g_wide;
 scratch_vector<std::uint32_t> g_vector;
 std::unique_ptr<Bvh<>> g_heap;                   // a heap tree owned by a static: freed at exit too
 
-constexpr std::size_t n_tris = 40000;            // nodes: 2n * 32 bytes > 1 MiB; prim_ids: 160 KB (uncached)
+constexpr std::size_t n_tris = 40000;            // nodes: 2n * 32 bytes >= the cache threshold (min_cached)
 
 } // namespace
 
@@ -65,9 +65,11 @@ TEST_CASE("scratch: release_scratch while statics still hold blocks, then more b
     CHECK(!g_indexed.empty());   // the statics are untouched; they are freed after main
 }
 
-TEST_CASE("scratch: the 1 MiB threshold applies to the rounded size (2^18 - 1 uint32s are cached and reused)") {
+TEST_CASE("scratch: the cache threshold applies to the rounded size (min_cached / 4 - 1 uint32s are cached and reused)") {
+    static_assert(detail::ScratchPool::min_cached % 64 == 0 && detail::ScratchPool::min_cached >= 128);
     release_scratch();
-    constexpr std::size_t n = (std::size_t(1) << 18) - 1;   // 1 MiB - 4 bytes: exactly 1 MiB once rounded to 64 bytes
+    // min_cached - 4 bytes: exactly min_cached once rounded to 64 bytes
+    constexpr std::size_t n = detail::ScratchPool::min_cached / sizeof(std::uint32_t) - 1;
     { scratch_vector<std::uint32_t> v(n); }
     CHECK(scratch_cached_bytes() == detail::ScratchPool::min_cached);   // returned to the cache, at its real size
     {
@@ -75,7 +77,7 @@ TEST_CASE("scratch: the 1 MiB threshold applies to the rounded size (2^18 - 1 ui
         CHECK(scratch_cached_bytes() == 0);   // the next frame's array of the same size comes from the cache
     }
     CHECK(scratch_cached_bytes() == detail::ScratchPool::min_cached);
-    // Below the threshold once rounded (1 MiB - 64 bytes): not cached, freed.
+    // Below the threshold once rounded (min_cached - 64 bytes): not cached, freed.
     release_scratch();
     { scratch_vector<std::uint32_t> v(n - 16); }
     CHECK(scratch_cached_bytes() == 0);

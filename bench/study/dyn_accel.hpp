@@ -165,6 +165,10 @@ public:
                 blocks = ploc::build_blocks<W>(tris, ploc_config(), ex_);
                 return;
             }
+            if (spec_.blocks && spec_.kind == Kind::kbvh) {
+                blocks = kbvh::build_blocks<W>(tris, kbvh_config(), ex_);
+                return;
+            }
         }
         if (spec_.blocks) blocks = make_wide_blocks(build_fresh<W>(tris), tris, ex_);
         else wide = build_fresh<W>(tris);
@@ -190,7 +194,7 @@ public:
                 return pick([&] { return ploc::build<NodeT, Prim>(tris, ploc_config(), ex_); },
                             [&](auto w) { return ploc::build_wide<w(), NodeT, Prim>(tris, ploc_config(), ex_); });
             case Kind::kbvh: {
-                const kbvh::Config<kbvh::with_ploc> cfg{.split = {.beta = spec_.beta}, .builder = ploc_config()};
+                const kbvh::Config<kbvh::with_ploc> cfg = kbvh_config();
                 return pick([&] { return kbvh::build<NodeT, Prim>(tris, cfg, ex_); },
                             [&](auto w) { return kbvh::build_wide<w(), NodeT, Prim>(tris, cfg, ex_); });
             }
@@ -206,6 +210,7 @@ public:
     ploc::Config ploc_config() const {
         return {.radius = spec_.radius, .morton_bits = spec_.morton_bits, .leaves = leaf_config(spec_)};
     }
+    kbvh::Config<kbvh::with_ploc> kbvh_config() const { return {.split = {.beta = spec_.beta}, .builder = ploc_config()}; }
     /// The wide tree over `bvh`'s leaf part, which it takes over (one copy of the references per frame);
     /// `bvh` keeps its nodes for the SAH column and gets the leaf part back before a refit.
     template <int W>

@@ -28,7 +28,9 @@
 #include "ploc.hpp"
 #include "presplit.hpp"
 #include "detail/references.hpp"
+#include "detail/scratch.hpp"
 #include "detail/triangle_source.hpp"
+#include "wide_blocks.hpp"
 
 namespace dynbvh::kbvh {
 
@@ -40,6 +42,13 @@ struct with_ploc {
     /// The builder's raw tree over the fragments (may reorder `refs`).
     template <class T, class Exec>
     static BinaryTree build_tree(References<T>& refs, const config& cfg, const Exec& ex) { return ploc::build_tree(refs, cfg, ex); }
+    /// build_tree with the facts of every inner node made as the clusters merge (the emission then
+    /// skips its bottom-up pass; the same facts, bit for bit).
+    template <class T, class Exec>
+    static BinaryTree build_tree_with_info(References<T>& refs, const config& cfg,
+                                           scratch_vector<dynbvh::detail::RawNodeInfo<T>>& info, const Exec& ex) {
+        return ploc::detail::build_tree_with_info(refs, cfg, info, ex);
+    }
 };
 /// LBVH over the fragments (lbvh.hpp): the fastest build.
 struct with_lbvh {
@@ -78,6 +87,34 @@ std::pair<References<dynbvh::detail::source_scalar_t<Source>>, BinaryTree> build
     return {std::move(refs), std::move(tree)};
 }
 
+namespace detail {
+
+/// The whole build, emitted binary (W = 0) or W-wide (with Prim = prim::blocks<L>: the traced layout,
+/// leaves packed as the wide nodes are made): fragments, the builder's tree, the facts of its inner
+/// nodes (a builder that makes them as it goes, PLOC, skips compute_node_info's bottom-up pass), then
+/// the emission with cfg.builder.leaves. One code path for every input and layout.
+template <int W, class NodeT, class Prim, class Builder, class Source, class Exec>
+auto build_over(Source tris, const Config<Builder>& cfg, const Exec& ex) {
+    using T = dynbvh::detail::source_scalar_t<Source>;
+    auto refs = make_references(tris, ex);
+    if (presplit::budget(refs.size(), cfg.split) > 0) refs = presplit::split(refs, tris, cfg.split, ex);
+    scratch_vector<dynbvh::detail::RawNodeInfo<T>> info;
+    BinaryTree tree;
+    if constexpr (requires { Builder::build_tree_with_info(refs, cfg.builder, info, ex); }) {
+        tree = Builder::build_tree_with_info(refs, cfg.builder, info, ex);
+    } else {
+        tree = Builder::build_tree(refs, cfg.builder, ex);
+        info.resize(refs.size() == 0 ? 0 : tree.inner_count());
+        if (refs.size() != 0)
+            dynbvh::detail::compute_node_info(tree, refs, cfg.builder.leaves, std::span<dynbvh::detail::RawNodeInfo<T>>(info), ex);
+    }
+    const std::span<const dynbvh::detail::RawNodeInfo<T>> facts(info);
+    if constexpr (W == 0) return dynbvh::detail::emit_from_info<NodeT, Prim>(tree, refs, tris, facts, ex);
+    else return dynbvh::detail::emit_wide_from_info<W, NodeT, Prim>(tree, refs, tris, facts, ex);
+}
+
+} // namespace detail
+
 /// Builds a KBVH over `tris` (see the file comment). Triangles with non-finite vertices are left out
 /// (counted in Bvh::excluded); `tris` is not modified. A split triangle may appear in several leaves
 /// of the result, at most once per leaf. Throws what presplit::split and the builder throw.
@@ -85,8 +122,7 @@ std::pair<References<dynbvh::detail::source_scalar_t<Source>>, BinaryTree> build
 template <class NodeT = Node<>, class Prim = prim::indexed, class Builder = with_ploc, class Exec = exec::default_executor>
 Bvh<NodeT, Prim> build(std::span<const Triangle<typename NodeT::scalar_type>> tris, const Config<Builder>& cfg = {},
                        const Exec& ex = {}) {
-    auto [refs, tree] = build_tree<Builder>(tris, cfg, ex);
-    return emit_bvh<NodeT, Prim>(tree, refs, tris, cfg.builder.leaves, ex);
+    return detail::build_over<0, NodeT, Prim>(tris, cfg, ex);
 }
 
 /// Builds a KBVH over an indexed mesh read in place (mesh.hpp): the tree `build` gives over
@@ -95,8 +131,7 @@ template <class NodeT = void, class Prim = prim::indexed, class Builder = with_p
           class Index>
 Bvh<dynbvh::detail::node_for_t<NodeT, T>, Prim> build(const MeshView<T, Index>& mesh, const Config<Builder>& cfg = {},
                                                       const Exec& ex = {}) {
-    auto [refs, tree] = build_tree<Builder>(mesh, cfg, ex);
-    return emit_bvh<dynbvh::detail::node_for_t<NodeT, T>, Prim>(tree, refs, mesh, cfg.builder.leaves, ex);
+    return detail::build_over<0, dynbvh::detail::node_for_t<NodeT, T>, Prim>(mesh, cfg, ex);
 }
 
 /// Builds a KBVH straight into the W-wide layout (W = 4 or 8; detail/emit_wide.hpp): the tree
@@ -104,8 +139,7 @@ Bvh<dynbvh::detail::node_for_t<NodeT, T>, Prim> build(const MeshView<T, Index>& 
 template <int W = 8, class NodeT = Node<>, class Prim = prim::indexed, class Builder = with_ploc, class Exec = exec::default_executor>
 wide_bvh_of<Bvh<NodeT, Prim>, W> build_wide(std::span<const Triangle<typename NodeT::scalar_type>> tris,
                                             const Config<Builder>& cfg = {}, const Exec& ex = {}) {
-    auto [refs, tree] = build_tree<Builder>(tris, cfg, ex);
-    return emit_wide_bvh<W, NodeT, Prim>(tree, refs, tris, cfg.builder.leaves, ex);
+    return detail::build_over<W, NodeT, Prim>(tris, cfg, ex);
 }
 
 /// build_wide over an indexed mesh read in place (mesh.hpp); same tree as over make_triangles' array.
@@ -113,8 +147,26 @@ template <int W = 8, class NodeT = void, class Prim = prim::indexed, class Build
           class Exec = exec::default_executor, class T, class Index>
 wide_bvh_of<Bvh<dynbvh::detail::node_for_t<NodeT, T>, Prim>, W> build_wide(const MeshView<T, Index>& mesh,
                                                                          const Config<Builder>& cfg = {}, const Exec& ex = {}) {
-    auto [refs, tree] = build_tree<Builder>(mesh, cfg, ex);
-    return emit_wide_bvh<W, dynbvh::detail::node_for_t<NodeT, T>, Prim>(tree, refs, mesh, cfg.builder.leaves, ex);
+    return detail::build_over<W, dynbvh::detail::node_for_t<NodeT, T>, Prim>(mesh, cfg, ex);
+}
+
+/// The traced layout in one step: the W-wide tree `build_wide<W>(tris, cfg, ex)` gives with its leaves
+/// packed into SIMD blocks of L triangles (wide_blocks.hpp), the tree
+/// `make_wide_blocks<L>(build_wide<W>(tris, cfg, ex), tris, ex)` gives, bit for bit (a leaf with two
+/// fragments of one triangle packs it once). Pass `.builder = {.leaves = dynbvh::block_leaves}` for
+/// leaves sized for blocks of 8. One line:
+/// `auto t = dynbvh::kbvh::build_blocks(tris, {.builder = {.leaves = dynbvh::block_leaves}}, ex);`
+template <int W = 8, int L = W, class Builder = with_ploc, class Exec = exec::default_executor>
+WideBvh<WideNode<float, std::uint32_t, W>, prim::blocks<L>> build_blocks(std::span<const Triangle<float>> tris,
+                                                                         const Config<Builder>& cfg = {}, const Exec& ex = {}) {
+    return detail::build_over<W, Node<float>, prim::blocks<L>>(tris, cfg, ex);
+}
+
+/// build_blocks over an indexed float mesh read in place (mesh.hpp): the span's tree, bit for bit.
+template <int W = 8, int L = W, class Builder = with_ploc, class Exec = exec::default_executor, class Index>
+WideBvh<WideNode<float, std::uint32_t, W>, prim::blocks<L>> build_blocks(const MeshView<float, Index>& mesh,
+                                                                         const Config<Builder>& cfg = {}, const Exec& ex = {}) {
+    return detail::build_over<W, Node<float>, prim::blocks<L>>(mesh, cfg, ex);
 }
 
 /// The same for a std::vector of triangles of any scalar, the node type following the triangles:

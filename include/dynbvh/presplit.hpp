@@ -43,6 +43,7 @@
 #include "executor.hpp"
 #include "detail/morton.hpp"
 #include "detail/references.hpp"
+#include "detail/scratch.hpp"
 #include "triangle.hpp"
 
 namespace dynbvh::presplit {
@@ -236,12 +237,12 @@ double priority(const Triangle<T>& tri, const AABB<T>& ref, const morton::Quanti
 
 /// Indices i in [0, n) with pred(i), in increasing order. O(n), parallel.
 template <class Pred, class Exec>
-std::vector<std::uint32_t> select(std::size_t n, Pred&& pred, const Exec& ex) {
-    std::vector<std::uint32_t> flag(n), offset(n);
+scratch_vector<std::uint32_t> select(std::size_t n, Pred&& pred, const Exec& ex) {
+    scratch_vector<std::uint32_t> flag(n), offset(n);
     ex.for_each(0, n, [&](std::size_t i) { flag[i] = pred(i) ? 1u : 0u; });
     const std::uint32_t total =
         ex.exclusive_scan(std::span<const std::uint32_t>(flag), std::span<std::uint32_t>(offset));
-    std::vector<std::uint32_t> out(total);
+    scratch_vector<std::uint32_t> out(total);
     ex.for_each(0, n, [&](std::size_t i) {
         if (flag[i]) out[offset[i]] = static_cast<std::uint32_t>(i);
     });
@@ -252,9 +253,10 @@ std::vector<std::uint32_t> select(std::size_t n, Pred&& pred, const Exec& ex) {
 /// leftover handed to the next split points beyond D. The result depends only on `prio` and `s_max`,
 /// never on the executor (every sum is of integers, the bracket only changes how fast it converges).
 template <class Exec>
-std::vector<std::uint32_t> allocate(const std::vector<double>& prio, std::size_t s_max, const Exec& ex) {
+scratch_vector<std::uint32_t> allocate(std::span<const double> prio, std::size_t s_max, const Exec& ex) {
     const std::size_t m = prio.size();
-    std::vector<std::uint32_t> count(m, 0);
+    scratch_vector<std::uint32_t> count(m);
+    ex.for_each(0, m, [&](std::size_t i) { count[i] = 0; });
     if (s_max == 0 || m == 0) return count;
 
     struct Stats {
@@ -268,20 +270,64 @@ std::vector<std::uint32_t> allocate(const std::vector<double>& prio, std::size_t
     if (st.positive == 0) return count;
 
     const auto s_target = static_cast<std::uint64_t>(s_max);
-    std::vector<std::uint32_t> cand;
-    std::vector<double> cp;
+    // Bracket sizes below which a pass over the candidates runs on the calling thread (a parallel
+    // pass costs more than it saves there).
+    constexpr std::size_t parallel_min = std::size_t(1) << 14;
+    scratch_vector<std::uint32_t> cand;   // references whose split count still depends on D
+    scratch_vector<double> cp;            // their priorities
+    std::uint64_t settled = 0;         // splits of the references no longer in cand (count[] written)
     auto total = [&](double d) {
-        return ex.reduce(std::size_t(0), cp.size(), std::uint64_t(0),
-                         [&](std::size_t k) { return static_cast<std::uint64_t>(d * cp[k]); },   // floor: d * p >= 0
-                         [](std::uint64_t a, std::uint64_t b) { return a + b; });
+        const auto of = [&](std::size_t k) { return static_cast<std::uint64_t>(d * cp[k]); };   // floor: d * p >= 0
+        if (cp.size() < parallel_min) {
+            std::uint64_t t = settled;
+            for (std::size_t k = 0; k < cp.size(); ++k) t += of(k);
+            return t;
+        }
+        return settled + ex.reduce(std::size_t(0), cp.size(), std::uint64_t(0), of, [](std::uint64_t a, std::uint64_t b) { return a + b; });
     };
     // Only references with floor(hi * p) >= 1 can get a split for any D <= hi.
-    double hi_compacted = 0;
     auto compact = [&](double hi) {
         cand = select(m, [&](std::size_t i) { return prio[i] > 0 && hi * prio[i] >= 1.0; }, ex);
         cp.resize(cand.size());
         ex.for_each(0, cand.size(), [&](std::size_t k) { cp[k] = prio[cand[k]]; });
-        hi_compacted = hi;
+    };
+    // Once the bracket is (lo, hi], a reference with floor(lo p) == floor(hi p) has its final count: it
+    // is written and leaves the candidates, so each bisection step reads only the references whose
+    // count the step can still change (the set shrinks with the bracket). Same result as summing all.
+    auto narrow = [&](double lo, double hi) {
+        const auto fixed = [&](std::size_t k) { return static_cast<std::uint64_t>(lo * cp[k]) == static_cast<std::uint64_t>(hi * cp[k]); };
+        std::size_t w = 0;
+        if (cp.size() < parallel_min) {
+            for (std::size_t k = 0; k < cp.size(); ++k) {
+                if (fixed(k)) {
+                    const auto c = static_cast<std::uint32_t>(lo * cp[k]);
+                    count[cand[k]] = c;
+                    settled += c;
+                } else {
+                    cand[w] = cand[k];
+                    cp[w++] = cp[k];
+                }
+            }
+        } else {
+            settled += ex.reduce(std::size_t(0), cp.size(), std::uint64_t(0), [&](std::size_t k) -> std::uint64_t {
+                if (!fixed(k)) return 0;
+                const auto c = static_cast<std::uint32_t>(lo * cp[k]);
+                count[cand[k]] = c;
+                return c;
+            }, [](std::uint64_t a, std::uint64_t b) { return a + b; });
+            const scratch_vector<std::uint32_t> keep = select(cp.size(), [&](std::size_t k) { return !fixed(k); }, ex);
+            scratch_vector<std::uint32_t> kc(keep.size());
+            scratch_vector<double> kp(keep.size());
+            ex.for_each(0, keep.size(), [&](std::size_t j) {
+                kc[j] = cand[keep[j]];
+                kp[j] = cp[keep[j]];
+            });
+            w = keep.size();
+            cand = std::move(kc);
+            cp = std::move(kp);
+        }
+        cand.resize(w);
+        cp.resize(w);
     };
 
     // Infeasible upper bounds: the top priority alone gets s_max + 1 splits; and
@@ -297,7 +343,8 @@ std::vector<std::uint32_t> allocate(const std::vector<double>& prio, std::size_t
     double lo = std::min(hi, static_cast<double>(s_max) / st.sum) * (1.0 - 1e-9);
     if (!(lo > 0.0) || total(lo) > s_target) lo = 0.0;
     std::uint64_t lo_total = lo > 0.0 ? total(lo) : 0;
-    for (int it = 0; it < 256 && lo_total != s_target; ++it) {
+    narrow(lo, hi);
+    for (int it = 0; it < 256 && lo_total != s_target && !cand.empty(); ++it) {
         const double mid = lo + (hi - lo) * 0.5;
         if (!(mid > lo && mid < hi)) break;   // adjacent doubles: D found
         const std::uint64_t c = total(mid);
@@ -306,8 +353,8 @@ std::vector<std::uint32_t> allocate(const std::vector<double>& prio, std::size_t
             lo_total = c;
         } else {
             hi = mid;
-            if (hi <= 0.5 * hi_compacted) compact(hi);
         }
+        narrow(lo, hi);
     }
 
     for (std::size_t k = 0; k < cand.size(); ++k)
@@ -359,11 +406,11 @@ References<T> split(const References<T>& refs, Source tris, const Config& cfg, c
     // The grid LBVH and PLOC split along first: Morton planes over the scene bounds.
     const morton::Quantizer<T> q(refs.bounds, morton::grid_bits<std::uint64_t>);
 
-    std::vector<double> prio(m);
+    scratch_vector<double> prio(m);
     ex.for_each(0, m, [&](std::size_t i) { prio[i] = detail::priority(tris[refs.prim[i]], refs.box[i], q); });
-    const std::vector<std::uint32_t> count = detail::allocate(prio, s_max, ex);
+    const scratch_vector<std::uint32_t> count = detail::allocate(std::span<const double>(prio), s_max, ex);
 
-    std::vector<std::size_t> offset(m);
+    scratch_vector<std::size_t> offset(m);
     ex.for_each(0, m, [&](std::size_t i) { offset[i] = std::size_t(count[i]) + 1; });
     const std::size_t total = ex.exclusive_scan(std::span<const std::size_t>(offset), std::span<std::size_t>(offset));
 

@@ -24,7 +24,11 @@ namespace detail {
 /// Process-wide cache of freed large blocks (best fit, bounded total size).
 class ScratchPool {
 public:
-    static constexpr std::size_t min_cached = std::size_t(1) << 20;     ///< smaller blocks (after rounding) bypass the cache
+    /// Smaller blocks (after rounding) bypass the cache. 128 KiB is glibc's default mmap threshold: a
+    /// block that size or larger comes from the kernel as fresh pages at each allocation, and faulting
+    /// those in dominated the presplit's per-build arrays of ~100k-triangle scenes (0.4-0.8 MiB each;
+    /// measured on a VM where a page fault costs microseconds).
+    static constexpr std::size_t min_cached = std::size_t(128) << 10;
     static constexpr std::size_t alignment = 64;
 
     /// The pool is never destroyed (deliberately leaked; its blocks stay reachable, so leak checkers
@@ -37,7 +41,7 @@ public:
     }
     /// Bytes a request of `bytes` really takes: rounded up to the alignment. The cache threshold and
     /// the best fit compare this size, in take and give alike (comparing the unrounded size missed the
-    /// cache for arrays just below 1 MiB that round up to it, e.g. 2^18 - 1 uint32s, every rebuild).
+    /// cache for arrays just below the threshold that round up to it, every rebuild).
     static constexpr std::size_t rounded(std::size_t bytes) noexcept {
         return bytes == 0 ? alignment : (bytes + alignment - 1) / alignment * alignment;
     }
