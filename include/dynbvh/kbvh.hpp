@@ -89,28 +89,34 @@ std::pair<References<dynbvh::detail::source_scalar_t<Source>>, BinaryTree> build
 
 namespace detail {
 
-/// The whole build, emitted binary (W = 0) or W-wide (with Prim = prim::blocks<L>: the traced layout,
-/// leaves packed as the wide nodes are made): fragments, the builder's tree, the facts of its inner
-/// nodes (a builder that makes them as it goes, PLOC, skips compute_node_info's bottom-up pass), then
-/// the emission with cfg.builder.leaves. One code path for every input and layout.
+/// The whole-build step for dynbvh::detail::build_over (detail/emit_wide.hpp), which emits the tree
+/// binary or W-wide (with prim::blocks<L>, blocks packed during the emission): references, fragments,
+/// the builder's tree and the facts of its inner nodes (a builder that makes them as it goes, PLOC,
+/// skips compute_node_info's bottom-up pass).
+template <class Builder>
+struct Topology {
+    static constexpr bool from_triangles = true;
+    template <class Source, class Exec>
+    auto operator()(Source tris, const Config<Builder>& cfg,
+                    scratch_vector<dynbvh::detail::RawNodeInfo<dynbvh::detail::source_scalar_t<Source>>>& info, const Exec& ex) const {
+        auto refs = make_references(tris, ex);
+        if (presplit::budget(refs.size(), cfg.split) > 0) refs = presplit::split(refs, tris, cfg.split, ex);
+        BinaryTree tree;
+        if constexpr (requires { Builder::build_tree_with_info(refs, cfg.builder, info, ex); }) {
+            tree = Builder::build_tree_with_info(refs, cfg.builder, info, ex);
+        } else {
+            tree = Builder::build_tree(refs, cfg.builder, ex);
+            info.resize(refs.size() == 0 ? 0 : tree.inner_count());
+            if (refs.size() != 0) dynbvh::detail::compute_node_info(tree, refs, cfg.builder.leaves, std::span(info.data(), info.size()), ex);
+        }
+        return std::pair{std::move(refs), std::move(tree)};
+    }
+};
+
+/// kbvh's whole build through the shared build_over: one code path for every input and layout.
 template <int W, class NodeT, class Prim, class Builder, class Source, class Exec>
 auto build_over(Source tris, const Config<Builder>& cfg, const Exec& ex) {
-    using T = dynbvh::detail::source_scalar_t<Source>;
-    auto refs = make_references(tris, ex);
-    if (presplit::budget(refs.size(), cfg.split) > 0) refs = presplit::split(refs, tris, cfg.split, ex);
-    scratch_vector<dynbvh::detail::RawNodeInfo<T>> info;
-    BinaryTree tree;
-    if constexpr (requires { Builder::build_tree_with_info(refs, cfg.builder, info, ex); }) {
-        tree = Builder::build_tree_with_info(refs, cfg.builder, info, ex);
-    } else {
-        tree = Builder::build_tree(refs, cfg.builder, ex);
-        info.resize(refs.size() == 0 ? 0 : tree.inner_count());
-        if (refs.size() != 0)
-            dynbvh::detail::compute_node_info(tree, refs, cfg.builder.leaves, std::span<dynbvh::detail::RawNodeInfo<T>>(info), ex);
-    }
-    const std::span<const dynbvh::detail::RawNodeInfo<T>> facts(info);
-    if constexpr (W == 0) return dynbvh::detail::emit_from_info<NodeT, Prim>(tree, refs, tris, facts, ex);
-    else return dynbvh::detail::emit_wide_from_info<W, NodeT, Prim>(tree, refs, tris, facts, ex);
+    return dynbvh::detail::build_over<W, NodeT, Prim>(tris, cfg, Topology<Builder>{}, ex);
 }
 
 } // namespace detail
