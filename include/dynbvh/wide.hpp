@@ -183,12 +183,26 @@ inline void fill_wide(std::span<const NodeT> bin, typename NodeT::index_type b,
     }
 }
 
+/// A task's run of wide nodes in memory set aside for it (part of one array shared by all tasks, sized
+/// by a bound on the run's length): what collapse_subtree needs of a vector, without an allocation per
+/// task (the direct emission's tasks each allocated, and faulted in, their own arrays).
+template <class WNode>
+struct NodeRun {
+    WNode* first = nullptr;
+    std::size_t used = 0;
+    std::size_t size() const noexcept { return used; }
+    void emplace_back() noexcept { ++used; }
+    WNode& operator[](std::size_t i) noexcept { return first[i]; }
+    const WNode* begin() const noexcept { return first; }
+    const WNode* end() const noexcept { return first + used; }
+};
+
 /// Step 2 of both wide conversions: collapses the binary subtree at `root` (of wide depth `depth`)
-/// depth first into `out`, its wide root at out[0] and child indices local to `out` (shifted when the
-/// arrays are concatenated). Returns the deepest wide depth reached.
-template <int W, class NodeT>
-std::uint32_t collapse_subtree(std::span<const NodeT> bin, typename NodeT::index_type root, std::uint32_t depth,
-                               scratch_vector<WideNode<typename NodeT::scalar_type, typename NodeT::index_type, W>>& out) {
+/// depth first into `out` (a scratch_vector or a NodeRun of the wide node type), its wide root at
+/// out[0] and child indices local to `out` (shifted when the arrays are concatenated). Returns the
+/// deepest wide depth reached. Writes at most as many wide nodes as the subtree has inner nodes.
+template <int W, class NodeT, class Out>
+std::uint32_t collapse_subtree(std::span<const NodeT> bin, typename NodeT::index_type root, std::uint32_t depth, Out& out) {
     using Index = typename NodeT::index_type;
     using WNode = WideNode<typename NodeT::scalar_type, Index, W>;
     struct Todo {
@@ -219,8 +233,8 @@ std::uint32_t collapse_subtree(std::span<const NodeT> bin, typename NodeT::index
 /// task k's local array goes after the top nodes, in task order, and is linked into the top slot that
 /// `pending[k]` names (`parent`, `slot`); the arrays are then copied in parallel with their inner
 /// children's indices shifted by their base. `depth` is raised to the deepest task's.
-template <int W, class WNode, class Pending, class Nodes, class Exec>
-void concatenate_wide(std::vector<WNode>& top, const Pending* pending, const std::vector<scratch_vector<WNode>>& local,
+template <int W, class WNode, class Pending, class Local, class Nodes, class Exec>
+void concatenate_wide(std::vector<WNode>& top, const Pending* pending, const std::vector<Local>& local,
                       const std::vector<std::uint32_t>& local_depth, Nodes& nodes, std::uint32_t& depth, const Exec& ex) {
     using Index = typename WNode::index_type;
     const std::size_t tasks = local.size();

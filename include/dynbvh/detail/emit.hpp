@@ -132,7 +132,7 @@ struct Emitter {
     const BinaryTree& tree;
     const References<T>& refs;
     std::span<const RawNodeInfo<T>> info;
-    decltype(Bvh<NodeT>::nodes)& nodes;
+    NodeT* nodes;   ///< the output nodes (a Bvh's array, or a task's part of a shared one)
     decltype(Bvh<NodeT>::prim_ids)& prim_ids;
     std::atomic<bool> deduplicated{false};   ///< some leaf held two fragments of one triangle
 
@@ -338,9 +338,10 @@ Bvh<NodeT, Prim> emit_from_info(const BinaryTree& tree, const References<T>& ref
     const std::size_t n_refs = refs.size();
     if (n_refs == 0) return bvh;
 
-    detail::Emitter<NodeT, T> em{tree, refs, info, bvh.nodes, bvh.prim_ids};
+    detail::Emitter<NodeT, T> em{tree, refs, info, nullptr, bvh.prim_ids};
     const std::uint32_t root = tree.root;
     bvh.nodes.resize(em.size_of(root));
+    em.nodes = bvh.nodes.data();
     bvh.prim_ids.resize(n_refs);
 
     // Step 1: write the top of the tree serially until the rest is independent subtrees.

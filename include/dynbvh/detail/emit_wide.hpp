@@ -287,23 +287,33 @@ typename wide_result<W, NodeT, Prim>::type emit_wide_from_info(const BinaryTree&
         // collapses that array as collapse_to_wide does (fill_wide): the same wide nodes, without the
         // whole binary tree going through memory. Opening the raw tree directly here (as the top does)
         // was slower than the two-step path: it walks the scattered facts in opening order, latency bound.
+        // The tasks' binary nodes and wide nodes live in two arrays shared by all tasks (each task's
+        // part sized by its subtree: the binary nodes it emits, and at most one wide node per binary
+        // inner node), taken from the scratch cache: an array per task came from malloc and was faulted
+        // in afresh at every build (a third of the emission on a 99k-triangle lattice, 1 thread).
         const std::size_t tasks = queue.size() - head;
-        std::vector<scratch_vector<WNode>> local(tasks);
+        std::vector<std::size_t> bin_base(tasks + 1, 0), wide_base(tasks + 1, 0);
+        for (std::size_t k = 0; k < tasks; ++k) {
+            const std::size_t size = em.size_of(queue[head + k].raw.id);
+            bin_base[k + 1] = bin_base[k] + size;
+            wide_base[k + 1] = wide_base[k] + (size + 1) / 2;
+        }
+        scratch_vector<NodeT> bin_nodes(bin_base[tasks]);
+        scratch_vector<WNode> wide_nodes(wide_base[tasks]);
+        std::vector<NodeRun<WNode>> local(tasks);
         std::vector<std::uint32_t> local_depth(tasks, 0);
         std::vector<std::size_t> local_blocks(tasks + 1, 0);   // (blocks) per task, then the first block of each
-        const std::size_t binary_nodes = em.size_of(root);
         std::atomic<bool> local_dedup{false};
         ex.for_tasks(tasks, [&](std::size_t k) {
             const Pending& p = queue[head + k];
-            scratch_vector<NodeT> bin_nodes(em.size_of(p.raw.id));
-            Emitter<NodeT, T> bin_em{tree, refs, info, bin_nodes, slots};
+            Emitter<NodeT, T> bin_em{tree, refs, info, bin_nodes.data() + bin_base[k], slots};
             bin_em.emit_subtree({p.raw.id, {0, 1, p.raw.ref, 0}});   // no rebalancing: the tree is within max_depth
             if (bin_em.deduplicated.load(std::memory_order_relaxed)) local_dedup.store(true, std::memory_order_relaxed);
-            const std::span<const NodeT> bin(bin_nodes);
-            scratch_vector<WNode>& out = local[k];
-            out.reserve(binary_nodes / (6 * tasks) + 8);
+            const std::span<const NodeT> bin(bin_nodes.data() + bin_base[k], bin_base[k + 1] - bin_base[k]);
+            NodeRun<WNode>& out = local[k];
+            out.first = wide_nodes.data() + wide_base[k];
             local_depth[k] = collapse_subtree<W>(bin, Index(0), p.depth, out);
-            local_blocks[k + 1] = count_blocks(out.data(), out.data() + out.size());
+            local_blocks[k + 1] = count_blocks(out.begin(), out.end());
         });
         if (local_dedup.load()) em.deduplicated.store(true);
         // Step 3: the arrays after the top, linked in, copied with shifted child indices.
