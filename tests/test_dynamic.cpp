@@ -274,94 +274,98 @@ TEST_CASE("Dynamic: the amortized rule rebuilds exactly when the estimated trace
     const auto base = sphere(12, 24);
     const exec::serial ex;
     constexpr double cost = 5.0;   // what a rebuild is taken to cost (ms): fixed, so the script is exact
-    Dynamic<builder::ploc, Node<>, prim::indexed, exec::serial> dyn({.rule = RebuildRule::amortized, .rebuild_ms = cost}, ex);
-    // Scripted trace times (ms) per frame, and the expectation recomputed independently: our own tree,
-    // refitted each frame; with scaled(T, a, b) = T (b / a)^e, loss = trust * (sum over traced frames of
-    // T - scaled(T, s, s_rebuilt), plus this frame's prediction for T' = scaled(T_prev, s_prev, s)); after
-    // each rebuild the first trace time moves trust halfway to the measured share of the predicted saving
-    // (clamped to [0, 1], >= 1/8); e (1 at first) is log(T / T1) / log(s / s1) against the first frame
-    // traced since the last rebuild once s >= 1.2 s1, clamped to [1/8, 1].
-    const double trace_ms[] = {10, 12, 9, 11.5, 30, 4, 4, 50, 1, 1, 1, 20, 20, 20, 20, 20, 20, 20, 20, 20, 20, 20, 20, 20};
-    Bvh<> mine;
-    double rebuilt_sah = 0, loss = 0, prev_ms = 0, prev_sah = 0, trust = 1, check_refit = 0, check_fresh = 0;
-    double e = 1, first_ms = 0, first_sah = 0;
-    bool check = false, first_pending = false;
-    int measured_e = 0, clamped_e = 0;
-    const auto scaled = [&](double ms, double a, double b) { return e == 1.0 ? ms * b / a : ms * std::pow(b / a, e); };
-    int rebuilds = 0, refits = 0, checks = 0, streaks = 0;
-    StreakModel streak;
-    for (int f = 0; f < 24; ++f) {
-        // from frame 18 on the scene rearranges itself every frame: a streak of rebuilds
-        const auto tris = f < 18 ? exploding(base, f) : scrambled(base, f);
-        const std::span<const Trianglef> s(tris);
-        const FrameReport r = dyn.update(s);
-        CAPTURE(f);
-        Decision want = Decision::refit;
-        Reason why = Reason::amortized;
-        double now = std::numeric_limits<double>::quiet_NaN();   // the serving tree's SAH this frame
-        if (f == 0) {
-            want = Decision::rebuild;
-            CHECK(r.reason == Reason::first_frame);
-        } else if (streak.direct()) {
-            want = Decision::rebuild;
-            why = Reason::streak;
-            ++streaks;
-            CHECK(r.loss_ms == 0);
-            CHECK(r.rebuild_cost_ms == cost);
-            CHECK(std::isnan(r.sah_before));
-        } else {
-            now = refit_sah(mine, s, {}, ex).sah;
-            const double next = scaled(prev_ms, prev_sah, now);
-            const double predicted = now > rebuilt_sah ? trust * (next - scaled(next, now, rebuilt_sah)) : 0;
-            CHECK(r.loss_ms == doctest::Approx(loss + predicted).epsilon(1e-12));
-            CHECK(r.rebuild_cost_ms == cost);
-            CHECK(r.trust == doctest::Approx(trust).epsilon(1e-12));
-            CHECK(r.elasticity == e);
-            if (loss + predicted >= cost) {
+    // The default initial elasticity (1/3) and 1 (trace time proportional to the SAH).
+    for (const double e0 : {DynamicConfig<ploc::Config>{}.initial_elasticity, 1.0}) {
+        CAPTURE(e0);
+        Dynamic<builder::ploc, Node<>, prim::indexed, exec::serial> dyn({.rule = RebuildRule::amortized, .rebuild_ms = cost, .initial_elasticity = e0}, ex);
+        // Scripted trace times (ms) per frame, and the expectation recomputed independently: our own tree,
+        // refitted each frame; with scaled(T, a, b) = T (b / a)^e, loss = trust * (sum over traced frames of
+        // T - scaled(T, s, s_rebuilt), plus this frame's prediction for T' = scaled(T_prev, s_prev, s)); after
+        // each rebuild the first trace time moves trust halfway to the measured share of the predicted saving
+        // (clamped to [0, 1], >= 1/8); e (1 at first) is log(T / T1) / log(s / s1) against the first frame
+        // traced since the last rebuild once s >= 1.2 s1, clamped to [1/8, 1]; e0 before that.
+        const double trace_ms[] = {10, 12, 9, 11.5, 30, 4, 4, 50, 1, 1, 1, 20, 20, 20, 20, 20, 20, 20, 20, 20, 20, 20, 20, 20};
+        Bvh<> mine;
+        double rebuilt_sah = 0, loss = 0, prev_ms = 0, prev_sah = 0, trust = 1, check_refit = 0, check_fresh = 0;
+        double e = e0, first_ms = 0, first_sah = 0;
+        bool check = false, first_pending = false;
+        int measured_e = 0, clamped_e = 0;
+        const auto scaled = [&](double ms, double a, double b) { return e == 1.0 ? ms * b / a : ms * std::pow(b / a, e); };
+        int rebuilds = 0, refits = 0, checks = 0, streaks = 0;
+        StreakModel streak;
+        for (int f = 0; f < 24; ++f) {
+            // from frame 18 on the scene rearranges itself every frame: a streak of rebuilds
+            const auto tris = f < 18 ? exploding(base, f) : scrambled(base, f);
+            const std::span<const Trianglef> s(tris);
+            const FrameReport r = dyn.update(s);
+            CAPTURE(f);
+            Decision want = Decision::refit;
+            Reason why = Reason::amortized;
+            double now = std::numeric_limits<double>::quiet_NaN();   // the serving tree's SAH this frame
+            if (f == 0) {
                 want = Decision::rebuild;
-                check = true;
-                check_refit = next;
+                CHECK(r.reason == Reason::first_frame);
+            } else if (streak.direct()) {
+                want = Decision::rebuild;
+                why = Reason::streak;
+                ++streaks;
+                CHECK(r.loss_ms == 0);
+                CHECK(r.rebuild_cost_ms == cost);
+                CHECK(std::isnan(r.sah_before));
+            } else {
+                now = refit_sah(mine, s, {}, ex).sah;
+                const double next = scaled(prev_ms, prev_sah, now);
+                const double predicted = now > rebuilt_sah ? trust * (next - scaled(next, now, rebuilt_sah)) : 0;
+                CHECK(r.loss_ms == doctest::Approx(loss + predicted).epsilon(1e-12));
+                CHECK(r.rebuild_cost_ms == cost);
+                CHECK(r.trust == doctest::Approx(trust).epsilon(1e-12));
+                CHECK(r.elasticity == e);
+                if (loss + predicted >= cost) {
+                    want = Decision::rebuild;
+                    check = true;
+                    check_refit = next;
+                }
+                streak.refitted(want == Decision::rebuild, loss + predicted >= 2 * cost);
             }
-            streak.refitted(want == Decision::rebuild, loss + predicted >= 2 * cost);
+            streak.end(want == Decision::rebuild);
+            expect_decision(r, want, why, f, s, mine, rebuilt_sah, rebuilds, refits, now);
+            if (want == Decision::rebuild) now = rebuilt_sah;
+            if (want == Decision::rebuild) {
+                if (f > 0) check_fresh = scaled(prev_ms, prev_sah, rebuilt_sah);
+                loss = 0;
+                first_pending = true;
+            }
+            // the caller traces, then reports
+            check_exact(dyn.bvh(), tris, 300 + std::uint64_t(f), "frame " + std::to_string(f));
+            dyn.record_trace_ms(trace_ms[f]);
+            if (first_pending) {
+                first_ms = trace_ms[f];
+                first_sah = now;
+                first_pending = false;
+            } else if (now >= 1.2 * first_sah) {
+                const double raw = std::log(trace_ms[f] / first_ms) / std::log(now / first_sah);
+                e = std::clamp(raw, 0.125, 1.0);
+                ++measured_e;
+                clamped_e += raw != e;
+            }
+            if (check) {
+                const double share = (check_refit - trace_ms[f]) / (check_refit - check_fresh);
+                if (check_refit > check_fresh) trust = std::max(0.125, 0.5 * trust + 0.5 * std::clamp(share, 0.0, 1.0));
+                check = false;
+                ++checks;
+            }
+            if (now > rebuilt_sah) loss += trust * (trace_ms[f] - scaled(trace_ms[f], now, rebuilt_sah));
+            prev_ms = trace_ms[f];
+            prev_sah = now;
         }
-        streak.end(want == Decision::rebuild);
-        expect_decision(r, want, why, f, s, mine, rebuilt_sah, rebuilds, refits, now);
-        if (want == Decision::rebuild) now = rebuilt_sah;
-        if (want == Decision::rebuild) {
-            if (f > 0) check_fresh = scaled(prev_ms, prev_sah, rebuilt_sah);
-            loss = 0;
-            first_pending = true;
-        }
-        // the caller traces, then reports
-        check_exact(dyn.bvh(), tris, 300 + std::uint64_t(f), "frame " + std::to_string(f));
-        dyn.record_trace_ms(trace_ms[f]);
-        if (first_pending) {
-            first_ms = trace_ms[f];
-            first_sah = now;
-            first_pending = false;
-        } else if (now >= 1.2 * first_sah) {
-            const double raw = std::log(trace_ms[f] / first_ms) / std::log(now / first_sah);
-            e = std::clamp(raw, 0.125, 1.0);
-            ++measured_e;
-            clamped_e += raw != e;
-        }
-        if (check) {
-            const double share = (check_refit - trace_ms[f]) / (check_refit - check_fresh);
-            if (check_refit > check_fresh) trust = std::max(0.125, 0.5 * trust + 0.5 * std::clamp(share, 0.0, 1.0));
-            check = false;
-            ++checks;
-        }
-        if (now > rebuilt_sah) loss += trust * (trace_ms[f] - scaled(trace_ms[f], now, rebuilt_sah));
-        prev_ms = trace_ms[f];
-        prev_sah = now;
+        CHECK(rebuilds >= 3);
+        CHECK(refits >= 3);
+        CHECK(checks >= 2);
+        CHECK(streaks >= 2);
+        CHECK(trust < 1);   // the script's times after rebuilds do not show the whole predicted saving
+        CHECK(measured_e >= 2);   // the elasticity was measured, once at least inside its bounds
+        CHECK(measured_e > clamped_e);
     }
-    CHECK(rebuilds >= 3);
-    CHECK(refits >= 3);
-    CHECK(checks >= 2);
-    CHECK(streaks >= 2);
-    CHECK(trust < 1);   // the script's times after rebuilds do not show the whole predicted saving
-    CHECK(measured_e >= 2);   // the elasticity was measured, once at least inside its bounds
-    CHECK(measured_e > clamped_e);
     // Without reported trace times the rule is sah_growth's; bad trace times are ignored; bad costs throw.
     Dynamic<builder::lbvh, Node<>, prim::copied, exec::serial> quiet({.rule = RebuildRule::amortized, .rebuild_threshold = 0});
     for (int f = 0; f < 3; ++f) {
@@ -372,6 +376,9 @@ TEST_CASE("Dynamic: the amortized rule rebuilds exactly when the estimated trace
         quiet.record_trace_ms(-1);
     }
     CHECK_THROWS_WITH_AS(Dynamic<>({.rebuild_ms = -1.0}), doctest::Contains("cfg.rebuild_ms"), std::invalid_argument);
+    for (const double e : {0.0, 0.1, 1.5, std::numeric_limits<double>::quiet_NaN()})
+        CHECK_THROWS_WITH_AS(Dynamic<>({.initial_elasticity = e}), doctest::Contains("cfg.initial_elasticity"), std::invalid_argument);
+    CHECK_NOTHROW(Dynamic<>({.initial_elasticity = 0.125}));
 }
 
 TEST_CASE("Dynamic: threshold 0 rebuilds every frame, +inf never rebuilds for SAH growth; bad thresholds throw") {

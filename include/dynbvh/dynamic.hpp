@@ -22,8 +22,8 @@
 ///  - `amortized` (the default, once the caller reports trace times with record_trace_ms()): trace time
 ///    is taken as growing with the SAH (Goldsmith & Salmon 1987; MacDonald & Booth 1990) as T ~ s^e, so of
 ///    a frame traced in T ms with SAH s, T (1 - (s_rebuilt / s)^e) is the time the refitted tree lost
-///    against a fresh one (s_rebuilt: the SAH right after the last rebuild). The elasticity e starts at 1
-///    (trace time proportional to the SAH) and is measured on the refitted frames themselves: once the
+///    against a fresh one (s_rebuilt: the SAH right after the last rebuild). The elasticity e starts at
+///    `DynamicConfig::initial_elasticity` (1/3) and is measured on the refitted frames themselves: once the
 ///    SAH has grown by 20 % over the first frame traced after the last (re)build, e = log(T / T1) /
 ///    log(s / s1) of the current frame against that first one, kept in [1/8, 1]
 ///    (`FrameReport::elasticity`; packets, caches and the scene's depth complexity make trace time grow
@@ -160,6 +160,13 @@ struct DynamicConfig {
     /// amortized: what a rebuild costs, in ms. 0 (default): the measured wall time of the last rebuild
     /// (build + SAH, on the calling thread or in the background). Negative or NaN: std::invalid_argument.
     double rebuild_ms = 0;
+    /// amortized: the elasticity e (trace time ~ SAH^e) the loss estimates assume until the refitted
+    /// frames have measured one (see the file comment). Default 1/3, the middle of what the built-in and
+    /// BART scenes measure (0.12-0.46: primary rays, packets and caches make trace time grow far more
+    /// slowly than the SAH); 1 assumes trace time proportional to the SAH, which rebuilt scenes whose
+    /// trace time barely grew (cloth, 8 frames spread over the animation: 1.11x the better of always
+    /// refitting and always rebuilding). In [1/8, 1]; others: std::invalid_argument.
+    double initial_elasticity = 1.0 / 3.0;
     /// Rebuild on a background thread while refitted trees serve the frames (Ize et al. 2007). Default off.
     bool async = false;
     /// Rebuild streaks (see the file comment): once two frames in a row rebuilt at their first refit by
@@ -211,14 +218,17 @@ public:
     using config_type = DynamicConfig<typename Builder::config>;  ///< the policy's knobs
 
     /// A policy with no tree yet (the first update() builds). Throws std::invalid_argument when
-    /// cfg.rebuild_threshold is NaN or negative.
-    explicit Dynamic(const config_type& cfg = {}, const Exec& ex = {}) : cfg_(cfg), ex_(ex) {
+    /// cfg.rebuild_threshold or cfg.rebuild_ms is NaN or negative, or cfg.initial_elasticity lies outside [1/8, 1].
+    explicit Dynamic(const config_type& cfg = {}, const Exec& ex = {}) : cfg_(cfg), ex_(ex), elasticity_(cfg.initial_elasticity) {
         if (!(cfg.rebuild_threshold >= 0))
             throw std::invalid_argument("dynbvh::Dynamic: cfg.rebuild_threshold is " + std::to_string(cfg.rebuild_threshold) +
                                         "; it must be >= 0 (0 rebuilds every frame, +inf never)");
         if (!(cfg.rebuild_ms >= 0))
             throw std::invalid_argument("dynbvh::Dynamic: cfg.rebuild_ms is " + std::to_string(cfg.rebuild_ms) +
                                         "; it must be >= 0 (0: the measured time of the last rebuild)");
+        if (!(cfg.initial_elasticity >= min_trust && cfg.initial_elasticity <= 1.0))
+            throw std::invalid_argument("dynbvh::Dynamic: cfg.initial_elasticity is " + std::to_string(cfg.initial_elasticity) +
+                                        "; it must lie in [0.125, 1] (trace time ~ SAH^e)");
     }
     /// Takes over `o`'s tree and its running background rebuild, if any.
     Dynamic(Dynamic&&) noexcept = default;
@@ -570,7 +580,7 @@ private:
     double trace_ms_ = 0;       // amortized rule: the last reported trace time ...
     double trace_sah_ = 0;      // ... and the SAH of the tree it traced (0: none reported yet)
     double trust_ = 1;          // amortized rule: share of predicted savings that rebuilds delivered
-    double elasticity_ = 1;     // amortized rule: e of T ~ s^e, measured on refitted frames
+    double elasticity_;         // amortized rule: e of T ~ s^e, measured on refitted frames (cfg.initial_elasticity at first)
     double first_ms_ = 0, first_sah_ = 0;   // the first frame traced since the last (re)build or swap ...
     bool first_pending_ = false;            // ... is still to come
     bool check_ = false;        // the next record_trace_ms() checks the last rebuild's saving ...

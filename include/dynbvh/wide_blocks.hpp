@@ -179,7 +179,7 @@ WideBvh<WN, prim::blocks<(L == 0 ? WN::width : L)>> blocks_of_wide(WideBvh<WN, P
 
 /// The block tree refit over any triangle source: one code path. With Count, returns the number of
 /// triangles it loaded that have a NaN or infinite vertex (refit_sah's report): each block's lanes are
-/// checked after loading, nine SIMD compares per block (TriangleBlock::nonfinite_mask). (Loading the blocks inside the wide refit's leaf pass
+/// checked in the box pass, nine SIMD compares per block (TriangleBlock::nonfinite_mask). (Loading the blocks inside the wide refit's leaf pass
 /// instead, one visit per leaf for its triangles and box, measured 10-25 % slower, and a per-triangle
 /// check while loading 15 %: dynbvh-bench-build BM_refit_wide8_blocks, 2 threads.)
 template <bool Count, class WN, int L, class Source, class Exec>
@@ -190,14 +190,18 @@ std::size_t refit_blocks(WideBvh<WN, prim::blocks<L>>& bvh, Source tris, const E
     ex.for_each(0, bvh.blocks.size(), [&](std::size_t i) {
         TriangleBlock<L>& b = bvh.blocks[i];
         for (int k = 0; k < int(b.count); ++k) b.set(k, tris[b.prim[k]], b.prim[k]);
-        if constexpr (Count)
-            if (const unsigned bad = b.nonfinite_mask(); bad != 0) nonfinite.fetch_add(std::size_t(std::popcount(bad)), std::memory_order_relaxed);
     }, 1024);
+    // (the non-finite lanes are counted in the box pass, which reads every block anyway: checked right
+    // after loading, the SIMD loads of the lanes just stored one float at a time could not be forwarded
+    // from the stores and stalled, +0.19 ms over the whole refit's 0.71 on a 146k-triangle n-body frame)
     refit_wide_boxes(bvh, [&](const WN& node, int k) {
         AABB<float> box;
         std::size_t left = node.count[k];
         for (const TriangleBlock<L>* b = bvh.blocks.data() + node.child[k]; left != 0; ++b) {
             for (int j = 0; j < int(b->count); ++j) box.extend(b->triangle(j).bounds());
+            if constexpr (Count)
+                if (const unsigned bad = b->nonfinite_mask(); bad != 0)
+                    nonfinite.fetch_add(std::size_t(std::popcount(bad)), std::memory_order_relaxed);
             left -= std::min<std::size_t>(left, b->count);
         }
         return box;
