@@ -161,8 +161,8 @@ struct DynamicConfig {
     /// (build + SAH, on the calling thread or in the background). Negative or NaN: std::invalid_argument.
     double rebuild_ms = 0;
     /// amortized: the elasticity e (trace time ~ SAH^e) the loss estimates assume until the refitted
-    /// frames have measured one (see the file comment). Default 1/3, the middle of what the built-in and
-    /// BART scenes measure (0.12-0.46: primary rays, packets and caches make trace time grow far more
+    /// frames have measured one (see the file comment). Default 1/3, the middle of what the built-in scenes
+    /// measure (0.12-0.46 in the study: primary rays, packets and caches make trace time grow far more
     /// slowly than the SAH); 1 assumes trace time proportional to the SAH, which rebuilt scenes whose
     /// trace time barely grew (cloth, 8 frames spread over the animation: 1.11x the better of always
     /// refitting and always rebuilding). In [1/8, 1]; others: std::invalid_argument.
