@@ -26,12 +26,15 @@ Affine<float> affine_of(const io::Transform& t) {
 
 bool is_identity(const io::Transform& t) { return t.m == io::Transform{}.m; }
 
+/// The objects' (and, with one instance per leaf, the top level's) builder knobs: the objects are traced
+/// through SIMD triangle blocks, so their leaves are collapsed with block_leaves' costs (TwoLevelConfig's
+/// default), up to the spec's largest leaf.
 template <class B> typename B::config tree_config(const BuilderSpec& spec);
 template <> builder::ploc::config tree_config<builder::ploc>(const BuilderSpec& spec) {
-    return {.radius = spec.radius, .morton_bits = spec.morton_bits, .leaves = {.max_leaf_size = spec.max_leaf}};
+    return {.radius = spec.radius, .morton_bits = spec.morton_bits, .leaves = {.max_leaf_size = spec.max_leaf, .cost = block_leaves.cost}};
 }
 template <> builder::lbvh::config tree_config<builder::lbvh>(const BuilderSpec& spec) {
-    return {.morton_bits = spec.morton_bits, .leaves = {.max_leaf_size = spec.max_leaf}};
+    return {.morton_bits = spec.morton_bits, .leaves = {.max_leaf_size = spec.max_leaf, .cost = block_leaves.cost}};
 }
 
 template <class Exec, class B>
