@@ -410,6 +410,8 @@ TEST_CASE("bart: camera keyframes, polygons, meshes, tpa, visibility, cones, mat
     s->evaluate(1.0, f);
     const auto tpa = find("animated triangles"), blink = find("[blink]");
     CHECK(tpa.animated);
+    CHECK(tpa.rigid_body == io::no_rigid_body);   // vertex animation: it changes shape
+    CHECK(blink.rigid_body != io::no_rigid_body);
     CHECK(near(f.triangles[tpa.first_triangle].p0, {1, 0, 0}));
     CHECK(near(f.triangles[tpa.first_triangle].p1, {2, 0, 0}));
     CHECK(std::isnan(f.triangles[blink.first_triangle].p0.x));

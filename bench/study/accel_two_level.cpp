@@ -11,20 +11,11 @@
 
 #include <render/whitted.hpp>
 #include "dyn_accel.hpp"
+#include "object_groups.hpp"
 
 namespace dynbvh::study {
 
 namespace {
-
-/// io::Transform (column-major 4x4) as the library's row-major 3x4 Affine.
-Affine<float> affine_of(const io::Transform& t) {
-    Affine<float> a;
-    for (std::size_t r = 0; r < 3; ++r)
-        for (std::size_t c = 0; c < 4; ++c) a.m[4 * r + c] = t.m[c * 4 + r];
-    return a;
-}
-
-bool is_identity(const io::Transform& t) { return t.m == io::Transform{}.m; }
 
 /// The objects' (and, with one instance per leaf, the top level's) builder knobs: the objects are traced
 /// through SIMD triangle blocks, so their leaves are collapsed with block_leaves' costs (TwoLevelConfig's
@@ -41,11 +32,10 @@ template <class Exec, class B>
 class TwoLevelAccel final : public Accel {
     using Scene = TwoLevel<B, Node<>, prim::indexed, Exec>;
 
-    /// One object of the frame layout the scene was set up for.
+    /// One object of the scene: a group of the frame's objects (object_groups.hpp).
     struct Slot {
-        std::uint32_t first = 0, count = 0;   ///< its run of the frame's triangles
-        bool deforming = false;               ///< given anew every frame (update_object), identity transform
-        std::uint32_t id = 0;                 ///< TwoLevel object id (when count > 0)
+        std::uint32_t id = 0;                   ///< TwoLevel object id
+        std::vector<std::uint32_t> frame_index; ///< the frame's triangle of each of the object's triangles
     };
 
 public:
@@ -60,20 +50,20 @@ public:
     void frame_objects(std::span<const io::ObjectInstance> objects) override { objects_ = objects; }
 
     void build(std::span<const Trianglef> tris) override {
-        if (!same_layout(tris)) {
+        if (!groups_ || !groups_->holds(objects_, tris.size())) {
             set_up(tris);
             return;
         }
-        // Step: rigid objects move by their transforms, deforming ones are refitted or rebuilt.
-        transforms_.resize(slots_.size());
-        std::size_t k = 0;
-        for (std::size_t i = 0; i < slots_.size(); ++i) {
-            const Slot& s = slots_[i];
-            if (s.count == 0) continue;
-            transforms_[k++] = s.deforming || objects_.empty() ? Affine<float>{} : affine_of(objects_[i].transform);
-            if (s.deforming) scene_->update_object(s.id, tris.subspan(s.first, s.count));
+        // Step: rigid groups move by their transforms, deforming ones are refitted or rebuilt.
+        const auto& groups = groups_->groups();
+        transforms_.resize(groups.size());
+        for (std::size_t g = 0; g < groups.size(); ++g) {
+            transforms_[g] = groups_->transform(g, objects_);
+            if (groups[g].deforming) {
+                const auto [first, count] = groups_->run(g);
+                scene_->update_object(slots_[g].id, tris.subspan(first, count));
+            }
         }
-        transforms_.resize(k);
         scene_->set_transforms(transforms_);
         scene_->commit();
     }
@@ -112,63 +102,34 @@ public:
     }
 
 private:
-    /// The hit with prim = the frame's triangle index (object's first triangle + the object's triangle).
+    /// The hit with prim = the frame's triangle index (instance i is slot i).
     Hitf frame_prim(const InstanceHit<float>& h) const {
         Hitf out = h;
-        if (h.instance != invalid_prim) out.prim = slots_[instance_slot_[h.instance]].first + h.prim;
+        if (h.instance != invalid_prim) out.prim = slots_[h.instance].frame_index[h.prim];
         return out;
     }
 
-    bool same_layout(std::span<const Trianglef> tris) const {
-        if (!scene_) return false;
-        if (objects_.empty() || !two_level_unsupported_layout(tris).empty()) return slots_.size() == 1 && slots_[0].count == tris.size();
-        if (objects_.size() != slots_.size()) return false;
-        for (std::size_t i = 0; i < slots_.size(); ++i)
-            if (objects_[i].first_triangle != slots_[i].first || objects_[i].triangle_count != slots_[i].count) return false;
-        return true;
-    }
-    std::string two_level_unsupported_layout(std::span<const Trianglef> tris) const {
-        std::size_t at = 0;
-        for (const auto& o : objects_) {
-            if (o.first_triangle != at) return "gap";
-            at += o.triangle_count;
-        }
-        return at == tris.size() ? std::string() : std::string("short");
-    }
-
-    /// A new scene for this frame's layout: rigid objects' triangles taken into object space (inverse of
-    /// this frame's transform), deforming ones used as they are. Without usable objects the whole frame
-    /// is one deforming object.
+    /// A new scene for this frame's layout (object_groups.hpp): each group of the frame's objects one object,
+    /// its triangles in object space (through the inverse of this frame's placement; deforming groups as
+    /// they are, and refitted or rebuilt every frame), and one instance.
     void set_up(std::span<const Trianglef> tris) {
+        groups_ = std::make_unique<GroupedObjects>(objects_, tris.size());
         scene_ = std::make_unique<Scene>(cfg_, ex_);
-        slots_.clear();
-        object_space_.clear();
-        instance_slot_.clear();
-        const bool usable = !objects_.empty() && two_level_unsupported_layout(tris).empty();
-        if (!usable) slots_.push_back({0, std::uint32_t(tris.size()), true, 0});
-        else
-            for (const auto& o : objects_)
-                slots_.push_back({o.first_triangle, o.triangle_count, o.animated && is_identity(o.transform), 0});
-        object_space_.resize(slots_.size());
+        const auto& groups = groups_->groups();
+        slots_.assign(groups.size(), Slot{});
+        object_space_.resize(groups.size());
         std::vector<Instance<float>> instances;
-        for (std::size_t i = 0; i < slots_.size(); ++i) {
-            Slot& s = slots_[i];
-            if (s.count == 0) continue;
-            const auto run = tris.subspan(s.first, s.count);
-            Affine<float> place{};
-            if (s.deforming) {
-                s.id = scene_->add_object(run);
+        for (std::size_t g = 0; g < groups.size(); ++g) {
+            Slot& s = slots_[g];
+            groups_->object_space(g, objects_, tris, object_space_[g], s.frame_index);
+            if (groups[g].deforming) {
+                const auto [first, count] = groups_->run(g);
+                s.id = scene_->add_object(tris.subspan(first, count));   // the frame's own triangles, given anew each frame
+                object_space_[g].clear();
             } else {
-                place = affine_of(objects_[i].transform);
-                const Affine<float> inv = inverse(place, "object " + objects_[i].name + "'s transform");
-                auto& local = object_space_[i];
-                local.resize(run.size());
-                for (std::size_t t = 0; t < run.size(); ++t)
-                    local[t] = {inv.point(run[t].p0), inv.point(run[t].p1), inv.point(run[t].p2)};
-                s.id = scene_->add_object(local);
+                s.id = scene_->add_object(object_space_[g]);
             }
-            instances.push_back({s.id, place});
-            instance_slot_.push_back(std::uint32_t(i));
+            instances.push_back({s.id, groups_->transform(g, objects_)});
         }
         scene_->set_instances(instances);
         scene_->commit();
@@ -180,9 +141,9 @@ private:
     typename Scene::config_type cfg_;
     std::span<const io::ObjectInstance> objects_;
     std::unique_ptr<Scene> scene_;
-    std::vector<Slot> slots_;
-    std::vector<std::vector<Trianglef>> object_space_;   // rigid objects' triangles in object space
-    std::vector<std::uint32_t> instance_slot_;           // instance -> slot
+    std::unique_ptr<GroupedObjects> groups_;             // the layout the scene was set up for
+    std::vector<Slot> slots_;                            // one per group = object = instance
+    std::vector<std::vector<Trianglef>> object_space_;   // rigid groups' triangles in object space
     std::vector<Affine<float>> transforms_;
 };
 

@@ -24,13 +24,14 @@ extern template std::unique_ptr<Accel> make_auto_accel(const BuilderSpec&, const
 #endif
 
 /// The Accel for a `two-level` spec (spec.kind == Kind::two_level) on executor `ex`: dynbvh::TwoLevel
-/// over the frame's objects (Accel::frame_objects). Rigid objects (those with a transform, or static) are
-/// built once, in object space: their triangles are taken from the first frame through the inverse of
-/// that frame's transform (the built-in scenes give world-space triangles only), and placed by each
-/// frame's transform; animated objects whose transform is the identity (cloth) are deforming: refitted
-/// or rebuilt by their own policy every frame. The top level is rebuilt every frame. A frame whose
-/// object layout differs from the last (a fracture) sets the scene up again. Traced with the binary
-/// trees (TwoLevel::intersect). Instantiated in accel_two_level.cpp.
+/// over the frame's objects (Accel::frame_objects) grouped into bodies (object_groups.hpp: the static
+/// objects together, the objects of one io::ObjectInstance::rigid_body together). Rigid bodies are built
+/// once, in object space: their triangles are taken from the first frame through the inverse of that
+/// frame's transform (the built-in scenes give world-space triangles only), and placed by each frame's
+/// transform; animated objects whose transform is the identity (cloth) are deforming: refitted or
+/// rebuilt by their own policy every frame. The top level is rebuilt every frame. A frame whose object
+/// layout differs from the last (a fracture) sets the scene up again. Traced through the objects'
+/// block trees (TwoLevel::intersect, one ray or a packet). Instantiated in accel_two_level.cpp.
 template <class Exec>
 std::unique_ptr<Accel> make_two_level_accel(const BuilderSpec& spec, const Exec& ex, const Backend& backend);
 

@@ -15,21 +15,13 @@
 
 #include "../embree_bvh.hpp"
 #include "dyn_accel.hpp"
+#include "object_groups.hpp"
 #endif
 
 namespace dynbvh::study {
 
 #if defined(DYNBVH_STUDY_EMBREE)
 namespace {
-
-Affine<float> affine_of(const io::Transform& t) {
-    Affine<float> a;
-    for (std::size_t r = 0; r < 3; ++r)
-        for (std::size_t c = 0; c < 4; ++c) a.m[4 * r + c] = t.m[c * 4 + r];
-    return a;
-}
-
-bool is_identity(const io::Transform& t) { return t.m == io::Transform{}.m; }
 
 void fill(RTCRay& ray, const Rayf& r) {
     ray.org_x = r.org.x;
@@ -47,8 +39,9 @@ void fill(RTCRay& ray, const Rayf& r) {
 }
 
 class EmbreeTwoLevelAccel final : public Accel {
+    /// One object: a group of the frame's objects (object_groups.hpp), as our two-level makes them.
     struct Slot {
-        std::uint32_t first = 0, count = 0;
+        std::vector<std::uint32_t> frame_index;   // the frame's triangle of each of the object's triangles
         bool deforming = false;
         RTCScene scene = nullptr;      // the object's own scene
         RTCGeometry mesh = nullptr;    // its triangles
@@ -74,23 +67,24 @@ public:
     /// triangles taken into object space through the inverse of this frame's transform); deforming objects
     /// get this frame's triangles.
     void prepare(std::span<const Trianglef> tris) override {
-        if (!same_layout(tris)) set_up(tris);
-        for (Slot& s : slots_) {
-            if (!s.deforming || s.count == 0) continue;
+        if (!groups_ || !groups_->holds(objects_, tris.size())) set_up(tris);
+        for (std::size_t g = 0; g < slots_.size(); ++g) {
+            Slot& s = slots_[g];
+            if (!s.deforming) continue;
+            const auto [first, count] = groups_->run(g);
             auto* v = static_cast<float*>(rtcGetGeometryBufferData(s.mesh, RTC_BUFFER_TYPE_VERTEX, 0));
-            std::memcpy(v, tris.data() + s.first, std::size_t(s.count) * sizeof(Trianglef));
+            std::memcpy(v, tris.data() + first, std::size_t(count) * sizeof(Trianglef));
             rtcUpdateGeometryBuffer(s.mesh, RTC_BUFFER_TYPE_VERTEX, 0);
             rtcCommitGeometry(s.mesh);
         }
     }
     /// Timed: deforming objects refitted (first frame: built), rigid ones' transforms set, the top scene rebuilt.
     void build(std::span<const Trianglef>) override {
-        for (std::size_t i = 0; i < slots_.size(); ++i) {
-            Slot& s = slots_[i];
-            if (s.count == 0) continue;
+        for (std::size_t g = 0; g < slots_.size(); ++g) {
+            Slot& s = slots_[g];
             if (s.deforming || fresh_) rtcCommitScene(s.scene);
             if (!s.deforming) {
-                const Affine<float> a = affine_of(objects_[i].transform);
+                const Affine<float> a = groups_->transform(g, objects_);
                 rtcSetGeometryTransform(s.inst, 0, RTC_FORMAT_FLOAT3X4_ROW_MAJOR, a.m.data());
             }
             rtcCommitGeometry(s.inst);
@@ -139,7 +133,7 @@ private:
         bench::EmbreeBvh::intersect_lanes<16>(top_, rays, valid, out, inst);
         for (int k = 0; k < 16; ++k)
             if (out[k].prim != invalid_prim) {
-                if (inst[k] < slots_.size()) out[k].prim += slots_[inst[k]].first;
+                if (inst[k] < slots_.size()) out[k].prim = slots_[inst[k]].frame_index[out[k].prim];
                 else out[k] = Hitf{};
             }
     }
@@ -158,27 +152,9 @@ private:
             h.t = rh.ray.tfar;
             h.u = rh.hit.u;
             h.v = rh.hit.v;
-            h.prim = slots_[rh.hit.instID[0]].first + rh.hit.primID;
+            h.prim = slots_[rh.hit.instID[0]].frame_index[rh.hit.primID];
         }
         return h;
-    }
-
-    bool layout_usable(std::span<const Trianglef> tris) const {
-        if (objects_.size() < 2) return false;
-        std::size_t at = 0;
-        for (const auto& o : objects_) {
-            if (o.first_triangle != at) return false;
-            at += o.triangle_count;
-        }
-        return at == tris.size();
-    }
-    bool same_layout(std::span<const Trianglef> tris) const {
-        if (!top_) return false;
-        if (!layout_usable(tris)) return slots_.size() == 1 && slots_[0].count == tris.size();
-        if (objects_.size() != slots_.size()) return false;
-        for (std::size_t i = 0; i < slots_.size(); ++i)
-            if (objects_[i].first_triangle != slots_[i].first || objects_[i].triangle_count != slots_[i].count) return false;
-        return true;
     }
 
     void set_up(std::span<const Trianglef> tris) {
@@ -187,13 +163,16 @@ private:
         top_ = rtcNewScene(device_);
         rtcSetSceneFlags(top_, RTC_SCENE_FLAG_DYNAMIC);
         rtcSetSceneBuildQuality(top_, RTC_BUILD_QUALITY_LOW);
-        if (!layout_usable(tris)) slots_.push_back({0, std::uint32_t(tris.size()), true});
-        else
-            for (const auto& o : objects_) slots_.push_back({o.first_triangle, o.triangle_count, o.animated && is_identity(o.transform)});
-        for (std::size_t i = 0; i < slots_.size(); ++i) {
-            Slot& s = slots_[i];
-            if (s.count == 0) continue;
-            const std::size_t n = s.count;
+        groups_ = std::make_unique<GroupedObjects>(objects_, tris.size());
+        const auto& groups = groups_->groups();
+        slots_.resize(groups.size());
+        std::vector<Trianglef> local;
+        for (std::size_t g = 0; g < groups.size(); ++g) {
+            Slot& s = slots_[g];
+            s.deforming = groups[g].deforming;
+            // object space: the inverse of this frame's placement, as our two-level does
+            groups_->object_space(g, objects_, tris, local, s.frame_index);
+            const std::size_t n = local.size();
             s.scene = rtcNewScene(device_);
             if (s.deforming) {
                 rtcSetSceneFlags(s.scene, RTC_SCENE_FLAG_DYNAMIC);
@@ -207,18 +186,8 @@ private:
             auto* idx = static_cast<unsigned*>(rtcSetNewGeometryBuffer(s.mesh, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3,
                                                                         sizeof(unsigned) * 3, n));
             for (std::size_t k = 0; k < 3 * n; ++k) idx[k] = unsigned(k);
-            if (!s.deforming) {
-                // object space: the inverse of this frame's transform, as our two-level does
-                const Affine<float> inv = inverse(affine_of(objects_[i].transform), "object " + objects_[i].name + "'s transform");
-                for (std::size_t t = 0; t < n; ++t) {
-                    const Trianglef& w = tris[s.first + t];
-                    const Vec3f p[3] = {inv.point(w.p0), inv.point(w.p1), inv.point(w.p2)};
-                    for (std::size_t c = 0; c < 3; ++c) {
-                        v[9 * t + 3 * c + 0] = p[c].x;
-                        v[9 * t + 3 * c + 1] = p[c].y;
-                        v[9 * t + 3 * c + 2] = p[c].z;
-                    }
-                }
+            if (!s.deforming) {   // (deforming ones get their triangles in prepare)
+                std::memcpy(v, local.data(), n * sizeof(Trianglef));
                 rtcCommitGeometry(s.mesh);
             }
             rtcAttachGeometry(s.scene, s.mesh);
@@ -226,7 +195,7 @@ private:
             rtcSetGeometryInstancedScene(s.inst, s.scene);
             const Affine<float> id{};
             rtcSetGeometryTransform(s.inst, 0, RTC_FORMAT_FLOAT3X4_ROW_MAJOR, id.m.data());
-            rtcAttachGeometryByID(top_, s.inst, unsigned(i));
+            rtcAttachGeometryByID(top_, s.inst, unsigned(g));
         }
     }
 
@@ -245,7 +214,8 @@ private:
     bool packets_;   // primary rays in packets of 16 (the run's --rays)
     RTCDevice device_ = nullptr;
     RTCScene top_ = nullptr;
-    std::vector<Slot> slots_;
+    std::unique_ptr<GroupedObjects> groups_;   // the layout the scene was set up for
+    std::vector<Slot> slots_;                  // one per group = instance (geomID in the top scene)
     std::span<const io::ObjectInstance> objects_;
     bool fresh_ = true;
 };

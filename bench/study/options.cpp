@@ -60,10 +60,12 @@ Builders (--builders, comma separated; default: all available)
   auto, auto:lbvh (strategy dynbvh::Dynamic: refit each frame, rebuild with PLOC or LBVH once the trace time
   refitting lost since the last rebuild reaches a rebuild's time; knobs rule=sah (rebuild past th x the last
   rebuild's SAH instead), th=1.3, async=1 (rebuild in the background, swap when ready), r=, bits=)
-  two-level, two-level:lbvh (dynbvh::TwoLevel: one tree per object of the frame, built once for rigid
-  objects and placed by their transforms, refitted or rebuilt for deforming ones (th=), a top-level tree
-  rebuilt every frame; scenes whose frames expose no objects are skipped)
-  embree-two-level (Embree 3 instancing: one scene per object, an instance each, a top scene per frame)
+  two-level, two-level:lbvh (dynbvh::TwoLevel: one tree per rigid body of the frame (the objects sharing
+  a BART transform node, all static objects together), built once and placed by its transform, refitted or
+  rebuilt for deforming objects (th=), a top-level tree rebuilt every frame; scenes whose frames expose no
+  objects are skipped)
+  embree-two-level (Embree 3 instancing over the same bodies: one scene each, an instance each, a top scene
+  per frame)
   Knobs after a colon: ploc:r=16, kbvh:beta=0.2, lbvh:bits=63, ploc:leaf=4, binned-sah:bins=16,
   ploc:tri=mt (Moller-Trumbore instead of watertight), ploc:box=fast (plain slab test),
   ploc:prim=pre (leaf triangles copied into the tree), ploc:wide=4 / ploc:wide=8 (trace a 4- or 8-wide

@@ -1049,6 +1049,7 @@ inline void Parser::finish(const std::string& entry) {
         ObjectInstance o;
         o.name = std::move(b.name);
         o.triangle_count = std::uint32_t(b.tris.size());
+        if (!b.tpa) o.rigid_body = b.node;   // (vertex-animated objects change shape: no rigid body)
         if (!b.tpa && !node.animated) {
             o.first_triangle = std::uint32_t(s_.static_tris_.size());
             o.transform = node.world.to_transform();
@@ -1173,7 +1174,8 @@ inline bool BartScene::holds_our_frame(const Frame& out) const noexcept {
         return false;
     for (std::size_t i = 0; i < objects_.size(); ++i) {
         const ObjectInstance &a = out.objects[i], &b = objects_[i];
-        if (a.first_triangle != b.first_triangle || a.triangle_count != b.triangle_count || a.animated != b.animated || a.name != b.name)
+        if (a.first_triangle != b.first_triangle || a.triangle_count != b.triangle_count || a.animated != b.animated || a.name != b.name ||
+            a.rigid_body != b.rigid_body)
             return false;
     }
     return true;

@@ -114,6 +114,9 @@ struct Transform {
     }
 };
 
+/// ObjectInstance::rigid_body of an object not known to move with any other.
+inline constexpr std::uint32_t no_rigid_body = 0xffffffffu;
+
 /// One object of a frame: a contiguous run of the frame's triangles and the
 /// world transform already applied to them (so a refit/rebuild choice can be per object).
 struct ObjectInstance {
@@ -127,6 +130,11 @@ struct ObjectInstance {
     Transform transform;
     /// True when its triangles may move between frames.
     bool animated = false;
+    /// Objects with the same id (other than no_rigid_body) move as one rigid body: every frame gives
+    /// them the same transform, and their triangles through its inverse do not change (BART: the
+    /// transform node of an object without vertex animation). A two-level scene can make them one
+    /// object and one instance.
+    std::uint32_t rigid_body = no_rigid_body;
 };
 
 /// Triangle mesh with optional per-face material ids (as read from one PLY/OBJ file).
