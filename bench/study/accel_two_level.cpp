@@ -125,7 +125,6 @@ private:
             if (groups[g].deforming) {
                 const auto [first, count] = groups_->run(g);
                 s.id = scene_->add_object(tris.subspan(first, count));   // the frame's own triangles, given anew each frame
-                object_space_[g].clear();
             } else {
                 s.id = scene_->add_object(object_space_[g]);
             }

@@ -172,7 +172,7 @@ private:
             s.deforming = groups[g].deforming;
             // object space: the inverse of this frame's placement, as our two-level does
             groups_->object_space(g, objects_, tris, local, s.frame_index);
-            const std::size_t n = local.size();
+            const std::size_t n = groups[g].triangles;
             s.scene = rtcNewScene(device_);
             if (s.deforming) {
                 rtcSetSceneFlags(s.scene, RTC_SCENE_FLAG_DYNAMIC);

@@ -34,10 +34,7 @@ Affine<float> affine_of(const io::Transform& t) {
 GroupedObjects::GroupedObjects(std::span<const io::ObjectInstance> objects, std::size_t triangle_count) {
     tiled_ = tiles(objects, triangle_count);
     if (!tiled_) {   // the whole frame as one deforming object
-        if (triangle_count > 0) {
-            groups_.push_back({{}, std::uint32_t(triangle_count), true, false});
-            runs_of_groups_.push_back({0, std::uint32_t(triangle_count)});
-        }
+        if (triangle_count > 0) groups_.push_back({{}, std::uint32_t(triangle_count), true, false});
         return;
     }
     runs_.reserve(objects.size());
@@ -65,8 +62,6 @@ GroupedObjects::GroupedObjects(std::span<const io::ObjectInstance> objects, std:
         groups_.push_back({{i}, o.triangle_count, deforming, false});
     }
     if (!fixed.members.empty()) groups_.insert(groups_.begin(), std::move(fixed));
-    for (const ObjectGroup& g : groups_)
-        runs_of_groups_.push_back(g.deforming ? runs_[g.members.front()] : std::pair<std::uint32_t, std::uint32_t>{0, 0});
 }
 
 bool GroupedObjects::holds(std::span<const io::ObjectInstance> objects, std::size_t triangle_count) const {
@@ -93,16 +88,13 @@ void GroupedObjects::object_space(std::size_t g, std::span<const io::ObjectInsta
     const ObjectGroup& grp = groups_[g];
     local.clear();
     frame_index.clear();
-    local.reserve(grp.triangles);
     frame_index.reserve(grp.triangles);
-    if (grp.deforming) {
-        const auto [first, count] = runs_of_groups_[g];
-        for (std::uint32_t t = first; t < first + count; ++t) {
-            local.push_back(tris[t]);
-            frame_index.push_back(t);
-        }
+    if (grp.deforming) {   // the frame's own run: no copy
+        const auto [first, count] = run(g);
+        for (std::uint32_t t = first; t < first + count; ++t) frame_index.push_back(t);
         return;
     }
+    local.reserve(grp.triangles);
     const io::ObjectInstance& lead = objects[grp.members.front()];
     const Affine<float> inv = grp.fixed ? Affine<float>{} : inverse(affine_of(lead.transform), "object " + lead.name + "'s transform");
     for (const std::uint32_t m : grp.members) {

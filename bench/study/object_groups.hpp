@@ -48,18 +48,22 @@ public:
 
     /// Group g's triangles in object space (world-space triangles through the inverse of its placement
     /// this frame; fixed groups as they are) into `local`, and the frame's index of each into `frame_index`.
+    /// A deforming group's triangles are the frame's own run (see run()): `local` stays empty for it.
     /// Throws std::invalid_argument naming the object when its transform is not invertible.
     void object_space(std::size_t g, std::span<const io::ObjectInstance> objects, std::span<const Trianglef> tris,
                       std::vector<Trianglef>& local, std::vector<std::uint32_t>& frame_index) const;
 
-    /// Group g's run of the frame's triangles when it is deforming (one object or the whole frame).
-    std::pair<std::uint32_t, std::uint32_t> run(std::size_t g) const noexcept { return runs_of_groups_[g]; }
+    /// Group g's run of the frame's triangles when it is deforming: its one object's, or the whole frame
+    /// (the group without members of a frame whose objects do not tile it).
+    std::pair<std::uint32_t, std::uint32_t> run(std::size_t g) const noexcept {
+        const ObjectGroup& grp = groups_[g];
+        return grp.members.empty() ? std::pair<std::uint32_t, std::uint32_t>{0, grp.triangles} : runs_[grp.members.front()];
+    }
 
 private:
     std::vector<ObjectGroup> groups_;
-    std::vector<std::pair<std::uint32_t, std::uint32_t>> runs_;             // (first, count) per frame object
-    std::vector<std::pair<std::uint32_t, std::uint32_t>> runs_of_groups_;   // deforming groups' runs
-    bool tiled_ = false;                                                    // objects tile the frame
+    std::vector<std::pair<std::uint32_t, std::uint32_t>> runs_;   // (first, count) per frame object
+    bool tiled_ = false;                                          // objects tile the frame
 };
 
 /// Affine of an io::Transform (column-major 4x4 to the library's row-major 3x4).

@@ -135,9 +135,6 @@ BuilderConfig one_instance_per_leaf() {
     c.leaves.max_leaf_size = 1;
     return c;
 }
-} // namespace detail
-
-namespace detail {
 /// An object policy config whose builder collapses leaves for SIMD triangle blocks (block_leaves).
 template <class BuilderConfig>
 DynamicConfig<BuilderConfig> block_leaf_objects() {
