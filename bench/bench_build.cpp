@@ -4,7 +4,8 @@
 // 99k long thin triangles of scenes/lattice.hpp. The traced layout (BM_*_blocks: 8-wide nodes with
 // leaves in SIMD blocks of 8) from each builder, and from morton_wide (the wide tree straight from the
 // sorted Morton codes; BM_morton_wide8_blocks: morton_wide::build_blocks, leaves packed as they are made;
-// BM_ploc_r5_blocks: ploc::build_blocks, the tree of BM_ploc_r5_wide8_blocks in one step; BM_kbvh_blocks likewise). Each builder three ways: the
+// BM_ploc_r5_blocks: ploc::build_blocks, the tree of BM_ploc_r5_wide8_blocks in one step, with the default hierarchical
+// schedule (H-PLOC), BM_ploc_r5_global_blocks with the original one; BM_kbvh_blocks likewise). Each builder three ways: the
 // binary Bvh (BM_<builder>), binary + make_wide<8> (BM_<builder>_then_wide8) and direct wide emission
 // build_wide<8> (BM_<builder>_wide8; the same tree, the 8-wide layout the study traces); refit of the
 // binary and of the 8-wide LBVH tree (BM_refit_binary, BM_refit_wide8) beside Embree's REFIT.
@@ -109,6 +110,11 @@ void BM_ploc_r5_wide8_blocks(benchmark::State& s) {
 void BM_ploc_r5_blocks(benchmark::State& s) {   // the same tree in one step (ploc::build_blocks)
     run_dynbvh(s, [](const auto& t, const auto& ex) { return ploc::build_blocks(std::span<const Trianglef>(t), {.radius = 5, .leaves = block_leaves}, ex); });
 }
+void BM_ploc_r5_global_blocks(benchmark::State& s) {   // PLOC's original schedule (iterations over all clusters)
+    run_dynbvh(s, [](const auto& t, const auto& ex) {
+        return ploc::build_blocks(std::span<const Trianglef>(t), {.radius = 5, .subtree_clusters = 0, .leaves = block_leaves}, ex);
+    });
+}
 void BM_kbvh_wide8_blocks(benchmark::State& s) {
     run_dynbvh(s, [](const auto& t, const auto& ex) {
         kbvh::Config<> c;
@@ -195,6 +201,7 @@ BENCHMARK(BM_morton_wide8_then_blocks) DYNBVH_SCENES;
 BENCHMARK(BM_lbvh_wide8_blocks) DYNBVH_SCENES;
 BENCHMARK(BM_ploc_r5_wide8_blocks) DYNBVH_SCENES;
 BENCHMARK(BM_ploc_r5_blocks) DYNBVH_SCENES;
+BENCHMARK(BM_ploc_r5_global_blocks) DYNBVH_SCENES;
 BENCHMARK(BM_kbvh_wide8_blocks) DYNBVH_SCENES;
 BENCHMARK(BM_kbvh_blocks) DYNBVH_SCENES;
 BENCHMARK(BM_embree_medium) DYNBVH_SCENES;

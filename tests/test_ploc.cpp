@@ -1,5 +1,6 @@
 // PLOC (ploc.hpp): raw topology invariants on hard inputs, every executor, determinism across executors,
-// the first iteration against brute force, full builds through emit_bvh, SAH against LBVH on the bunny.
+// the first iteration against brute force, both schedules against plain serial versions (PLOC, H-PLOC),
+// full builds through emit_bvh, SAH against LBVH on the bunny.
 #include <doctest/doctest.h>
 
 #include <dynbvh/io/ply.hpp>
@@ -86,8 +87,10 @@ TEST_CASE("ploc: random soup topology, every executor, radius 1, 5 and 32, both 
                 CAPTURE(name);
                 CAPTURE(radius);
                 CAPTURE(bits);
-                const BinaryTree tree = tree_of(tris, {.radius = radius, .morton_bits = bits}, ex);
-                check_topology(tree, tris.size());
+                for (std::uint32_t sub : {0u, 8u}) {   // the original schedule and the hierarchical one
+                    CAPTURE(sub);
+                    check_topology(tree_of(tris, {.radius = radius, .morton_bits = bits, .subtree_clusters = sub}, ex), tris.size());
+                }
             });
         }
 }
@@ -97,11 +100,11 @@ TEST_CASE("ploc: the tree is identical on every executor") {
     const auto tris = random_soup(30000, 2);
     for (std::uint32_t radius : {1u, 5u, 16u}) {
         CAPTURE(radius);
-        const BinaryTree ref = tree_of(tris, {.radius = radius}, exec::serial{});
+        const BinaryTree ref = tree_of(tris, {.radius = radius, .subtree_clusters = 0}, exec::serial{});
         check_topology(ref, tris.size());
         for_each_executor([&](const auto& ex, const std::string& name) {
             CAPTURE(name);
-            CHECK(same_tree(tree_of(tris, {.radius = radius}, ex), ref));
+            CHECK(same_tree(tree_of(tris, {.radius = radius, .subtree_clusters = 0}, ex), ref));
         }, true);
     }
 }
@@ -113,8 +116,11 @@ TEST_CASE("ploc: all-identical triangles terminate with a shallow tree") {
         CAPTURE(name);
         for (std::uint32_t radius : {1u, 5u, 32u}) {
             CAPTURE(radius);
-            const std::size_t depth = check_topology(tree_of(tris, {.radius = radius}, ex), tris.size());
-            CHECK(depth <= 14);  // pairwise merging halves the clusters every iteration: ceil(log2 5000) = 13
+            for (std::uint32_t sub : {0u, 8u}) {
+                CAPTURE(sub);
+                const std::size_t depth = check_topology(tree_of(tris, {.radius = radius, .subtree_clusters = sub}, ex), tris.size());
+                CHECK(depth <= 14);  // pairwise merging halves the clusters every iteration: ceil(log2 5000) = 13
+            }
         }
     });
 }
@@ -130,6 +136,7 @@ TEST_CASE("ploc: identical centroids with nested boxes terminate") {
     }
     for_each_executor([&](const auto& ex, const std::string& name) {
         CAPTURE(name);
+        check_topology(tree_of(tris, {.subtree_clusters = 0}, ex), tris.size());
         check_topology(tree_of(tris, {}, ex), tris.size());
     });
 }
@@ -171,6 +178,7 @@ TEST_CASE("ploc: huge coordinates whose merged areas overflow") {
     REQUIRE(make_references(std::span<const Trianglef>(tris), exec::serial{}).size() == tris.size());
     for_each_executor([&](const auto& ex, const std::string& name) {
         CAPTURE(name);
+        check_topology(tree_of(tris, {.subtree_clusters = 0}, ex), tris.size());
         check_topology(tree_of(tris, {}, ex), tris.size());
     });
 }
@@ -187,7 +195,7 @@ TEST_CASE("ploc: refs end up in Morton order, and the first iteration merges mut
     const auto tris = random_soup(64, 8, 0.2f);
     auto refs = make_references(std::span<const Trianglef>(tris), exec::serial{});
     const auto original = refs.prim;
-    const ploc::Config cfg{.radius = 3};
+    const ploc::Config cfg{.radius = 3, .subtree_clusters = 0};
     const BinaryTree tree = ploc::build_tree(refs, cfg, exec::serial{});
     const std::size_t n = refs.size(), r = cfg.radius;
     check_topology(tree, n);
@@ -225,66 +233,125 @@ TEST_CASE("ploc: refs end up in Morton order, and the first iteration merges mut
 /// parity of the lower position, lower position); mutual best pairs merge into node (first leaf of the
 /// higher cluster) - 1; an iteration merging fewer than clusters / 64 pairs (or none) pairs up positions
 /// (0,1), (2,3), ...
+/// The clusters of the plain PLOCs below: tree ids, first leaves, boxes, in Morton order.
+struct PlainClusters {
+    std::vector<std::uint32_t> ids, first;
+    std::vector<AABBf> boxes;
+};
+
+/// One plain PLOC iteration over `cl` (the order of pairs above; with `guard`, the adjacent pairing when
+/// fewer than clusters / 64 merge). False when a merge's id is out of range or used twice.
+bool plain_iteration(PlainClusters& cl, std::size_t radius, bool guard, BinaryTree& tree, std::vector<bool>& used) {
+    const std::size_t c = cl.ids.size(), n = used.size() + 1;
+    auto key = [&](std::size_t i, std::size_t j) {
+        const std::size_t lo = std::min(i, j), hi = std::max(i, j);
+        return std::make_tuple(merge(cl.boxes[lo], cl.boxes[hi]).half_area(), hi - lo, lo & 1, lo);
+    };
+    std::vector<std::size_t> nn(c);
+    for (std::size_t i = 0; i < c; ++i) {
+        std::size_t best = c;
+        for (std::size_t j = (i >= radius ? i - radius : 0); j <= std::min(c - 1, i + radius); ++j)
+            if (j != i && (best == c || key(i, j) < key(i, best))) best = j;
+        nn[i] = best;
+    }
+    std::size_t merges = 0;
+    for (std::size_t i = 0; i < c; ++i) merges += nn[nn[i]] == i && i < nn[i];
+    if (guard && (merges == 0 || merges < c / 64))
+        for (std::size_t i = 0; i < c; ++i) nn[i] = (i ^ 1) < c ? (i ^ 1) : i;
+    PlainClusters next;
+    for (std::size_t i = 0; i < c; ++i) {
+        const std::size_t j = nn[i];
+        const bool mutual = j != i && nn[j] == i;
+        if (!mutual) {
+            next.ids.push_back(cl.ids[i]);
+            next.first.push_back(cl.first[i]);
+            next.boxes.push_back(cl.boxes[i]);
+            continue;
+        }
+        if (j < i) continue;
+        const std::uint32_t node = cl.first[j] - 1;   // wraps around if first[j] == 0
+        if (node >= n - 1 || used[node]) return false;
+        used[node] = true;
+        tree.left[node] = cl.ids[i];
+        tree.right[node] = cl.ids[j];
+        next.ids.push_back(node);
+        next.first.push_back(cl.first[i]);
+        next.boxes.push_back(merge(cl.boxes[i], cl.boxes[j]));
+    }
+    cl = std::move(next);
+    return true;
+}
+
+/// A plain tree's start over `n` >= 2 references: every child slot unset, no id used.
+BinaryTree plain_start(std::size_t n, std::vector<bool>& used) {
+    BinaryTree tree;
+    tree.left.assign(n - 1, BinaryTree::leaf_flag);
+    tree.right.assign(n - 1, BinaryTree::leaf_flag);
+    used.assign(n - 1, false);
+    return tree;
+}
+
+/// The clusters that are references [b, e) themselves.
+PlainClusters plain_leaves(const References<float>& sorted, std::size_t b, std::size_t e) {
+    PlainClusters cl;
+    for (std::size_t i = b; i < e; ++i) {
+        cl.ids.push_back(BinaryTree::leaf(std::uint32_t(i)));
+        cl.first.push_back(std::uint32_t(i));
+        cl.boxes.push_back(sorted.box[i]);
+    }
+    return cl;
+}
+
 BinaryTree reference_ploc(const References<float>& sorted, std::size_t radius, bool& ids_ok) {
     ids_ok = true;
     const std::size_t n = sorted.size();
     BinaryTree tree;
     if (n == 0) return tree;
     if (n == 1) { tree.root = BinaryTree::leaf(0); return tree; }
-    std::vector<std::uint32_t> ids(n), first(n);
-    std::vector<AABBf> boxes(sorted.box.begin(), sorted.box.end());
-    for (std::size_t i = 0; i < n; ++i) ids[i] = BinaryTree::leaf(std::uint32_t(i));
-    for (std::size_t i = 0; i < n; ++i) first[i] = std::uint32_t(i);
-    tree.left.assign(n - 1, BinaryTree::leaf_flag);
-    tree.right.assign(n - 1, BinaryTree::leaf_flag);
-    std::vector<bool> used(n - 1, false);
-    while (ids.size() > 1) {
-        const std::size_t c = ids.size();
-        auto key = [&](std::size_t i, std::size_t j) {
-            const std::size_t lo = std::min(i, j), hi = std::max(i, j);
-            return std::make_tuple(merge(boxes[lo], boxes[hi]).half_area(), hi - lo, lo & 1, lo);
-        };
-        std::vector<std::size_t> nn(c);
-        for (std::size_t i = 0; i < c; ++i) {
-            std::size_t best = c;
-            for (std::size_t j = (i >= radius ? i - radius : 0); j <= std::min(c - 1, i + radius); ++j)
-                if (j != i && (best == c || key(i, j) < key(i, best))) best = j;
-            nn[i] = best;
-        }
-        std::size_t merges = 0;
-        for (std::size_t i = 0; i < c; ++i) merges += nn[nn[i]] == i && i < nn[i];
-        if (merges == 0 || merges < c / 64)
-            for (std::size_t i = 0; i < c; ++i) nn[i] = (i ^ 1) < c ? (i ^ 1) : i;
-        std::vector<std::uint32_t> next_ids, next_first;
-        std::vector<AABBf> next_boxes;
-        for (std::size_t i = 0; i < c; ++i) {
-            const std::size_t j = nn[i];
-            const bool mutual = j != i && nn[j] == i;
-            if (!mutual) {
-                next_ids.push_back(ids[i]);
-                next_first.push_back(first[i]);
-                next_boxes.push_back(boxes[i]);
-                continue;
-            }
-            if (j < i) continue;
-            const std::uint32_t node = first[j] - 1;   // wraps around if first[j] == 0
-            if (node >= n - 1 || used[node]) { ids_ok = false; return tree; }
-            used[node] = true;
-            tree.left[node] = ids[i];
-            tree.right[node] = ids[j];
-            next_ids.push_back(node);
-            next_first.push_back(first[i]);
-            next_boxes.push_back(merge(boxes[i], boxes[j]));
-        }
-        ids.swap(next_ids);
-        first.swap(next_first);
-        boxes.swap(next_boxes);
-    }
-    tree.root = ids[0];
+    std::vector<bool> used;
+    tree = plain_start(n, used);
+    PlainClusters cl = plain_leaves(sorted, 0, n);
+    while (cl.ids.size() > 1)
+        if (!plain_iteration(cl, radius, true, tree, used)) { ids_ok = false; return tree; }
+    tree.root = cl.ids[0];
     return tree;
 }
 
-TEST_CASE("ploc: the tree equals a plain serial PLOC, on every executor and radius") {
+/// H-PLOC written the plain way (serial recursion, copies): the radix tree of the sorted `keys` (a range
+/// splits before the first key whose highest bit differing in the range is set, a range of equal keys in
+/// its middle); a range of at most `limit` references gives those references as its clusters; otherwise
+/// its clusters are its two halves', in order, merged by plain iterations (no guard) while more than
+/// `limit` (at the root: 1) are left.
+BinaryTree reference_hploc(const References<float>& sorted, const std::vector<std::uint32_t>& keys, std::size_t radius,
+                           std::size_t limit, bool& ids_ok) {
+    ids_ok = true;
+    const std::size_t n = sorted.size();
+    std::vector<bool> used;
+    BinaryTree tree = plain_start(n, used);
+    auto solve = [&](auto& self, std::size_t b, std::size_t e, std::size_t target) -> PlainClusters {
+        PlainClusters cl;
+        if (e - b <= limit) {
+            cl = plain_leaves(sorted, b, e);
+        } else {
+            std::size_t m = b + (e - b) / 2;
+            if (keys[b] != keys[e - 1]) {
+                const int bit = 31 - std::countl_zero(keys[b] ^ keys[e - 1]);
+                for (m = b; !((keys[m] >> bit) & 1u); ++m) {}
+            }
+            cl = self(self, b, m, limit);
+            const PlainClusters r = self(self, m, e, limit);
+            cl.ids.insert(cl.ids.end(), r.ids.begin(), r.ids.end());
+            cl.first.insert(cl.first.end(), r.first.begin(), r.first.end());
+            cl.boxes.insert(cl.boxes.end(), r.boxes.begin(), r.boxes.end());
+        }
+        while (ids_ok && cl.ids.size() > target) ids_ok = plain_iteration(cl, radius, false, tree, used);
+        return cl;
+    };
+    tree.root = solve(solve, 0, n, 1).ids[0];
+    return tree;
+}
+
+TEST_CASE("ploc: the original schedule's tree equals a plain serial PLOC, on every executor and radius") {
     const std::vector<std::pair<const char*, std::vector<Trianglef>>> scenes = {
         {"soup", random_soup(12000, 15)},
         {"flat", flat_scene(5000, 16)},
@@ -308,9 +375,42 @@ TEST_CASE("ploc: the tree equals a plain serial PLOC, on every executor and radi
             REQUIRE(ids_ok);   // every merge got a fresh id in 0 .. n - 2
             for_each_executor([&](const auto& ex, const std::string& exec_name) {
                 CAPTURE(exec_name);
-                CHECK(same_tree(tree_of(tris, {.radius = radius}, ex), expected));
+                CHECK(same_tree(tree_of(tris, {.radius = radius, .subtree_clusters = 0}, ex), expected));
             });
         }
+    }
+}
+
+TEST_CASE("ploc: the hierarchical schedule's tree equals a plain serial H-PLOC, on every executor, radius and limit") {
+    const std::vector<std::pair<const char*, std::vector<Trianglef>>> scenes = {
+        {"soup", random_soup(test::sanitized() ? 6000 : 20000, 15)},
+        {"flat", flat_scene(5000, 16)},
+        {"identical", identical(3000)},
+        {"nested", [] {
+             std::vector<Trianglef> t;
+             for (int i = 0; i < 3000; ++i) t.push_back({{-1.0f - i, -1.0f - i, 0}, {2.0f + 2 * i, -1.0f - i, 0}, {-1.0f - i, 2.0f + 2 * i, 0}});
+             return t;
+         }()},
+        {"three", random_soup(3, 22)},
+    };
+    for (const auto& [name, tris] : scenes) {
+        CAPTURE(name);
+        auto sorted = make_references(std::span<const Trianglef>(tris), exec::serial{});
+        const auto k = morton::sort_references<std::uint32_t>(sorted, exec::serial{});
+        const std::vector<std::uint32_t> keys(k.begin(), k.end());
+        for (std::uint32_t radius : {1u, 5u, 32u})
+            for (std::uint32_t limit : {2u, 9u, 16u}) {
+                CAPTURE(radius);
+                CAPTURE(limit);
+                bool ids_ok = false;
+                const BinaryTree expected = reference_hploc(sorted, keys, radius, limit, ids_ok);
+                REQUIRE(ids_ok);
+                check_topology(expected, tris.size());
+                for_each_executor([&](const auto& ex, const std::string& exec_name) {
+                    CAPTURE(exec_name);
+                    CHECK(same_tree(tree_of(tris, {.radius = radius, .subtree_clusters = limit}, ex), expected));
+                }, true);
+            }
     }
 }
 
@@ -366,9 +466,12 @@ TEST_CASE("ploc: lower SAH than LBVH on the Stanford bunny, and a larger radius 
     const auto rep = validate(p5, span);
     CHECK_MESSAGE(rep.ok(), rep.summary());
     const double ploc5 = sah_cost(p5), ploc16 = sah_cost(ploc::build(span, {.radius = 16}));
-    MESSAGE("bunny SAH (Ct 3, Ci 2): lbvh " << lbvh_sah << ", ploc r=5 " << ploc5 << ", ploc r=16 " << ploc16);
+    const double global5 = sah_cost(ploc::build(span, {.radius = 5, .subtree_clusters = 0}));
+    MESSAGE("bunny SAH (Ct 3, Ci 2): lbvh " << lbvh_sah << ", ploc r=5 " << ploc5 << ", ploc r=16 " << ploc16
+                                            << ", ploc r=5 original schedule " << global5);
     CHECK(ploc5 < lbvh_sah);
     CHECK(ploc16 <= ploc5 * 1.01);
+    CHECK(ploc5 <= global5 * 1.03);   // the hierarchical schedule costs little tree quality
 }
 
 /// build, build_wide and build_blocks (references straight from the triangles, node facts made with the
@@ -386,9 +489,10 @@ TEST_CASE("ploc: build / build_wide / build_blocks are the plain path's trees, b
     for (const auto& [name, tris] : scenes) {
         CAPTURE(name);
         const std::span<const Trianglef> ts(tris);
-        for (const LeafConfig leaves : {block_leaves, LeafConfig{}}) {
+        for (const auto& [leaves, sub] : {std::pair{block_leaves, 8u}, std::pair{LeafConfig{}, 8u}, std::pair{block_leaves, 0u}, std::pair{LeafConfig{}, 16u}}) {
             CAPTURE(leaves.max_leaf_size);
-            const ploc::Config cfg{.radius = 5, .leaves = leaves};
+            CAPTURE(sub);
+            const ploc::Config cfg{.radius = 5, .subtree_clusters = sub, .leaves = leaves};
             const exec::serial s;
             // The plain path: make_references, build_tree (facts left to compute_node_info), then emission.
             auto refs = make_references(ts, s);

@@ -789,10 +789,10 @@ struct PacketTraversal {
                 const bool two = r + 1 < nr;
                 const __m512i sel = _mm512_mask_blend_epi32(__mmask16(0xff00), _mm512_set1_epi32(rays[r]), _mm512_set1_epi32(two ? rays[r + 1] : rays[r]));
                 const auto at = [&](__m512 x) { return _mm512_maskz_permutexvar_ps(all, sel, x); };
-                const __m512 ox = at(OX), oy = at(OY), oz = at(OZ), shx = at(SX), shy = at(SY);
-                const auto va = F::shear(V::sub(ax, ox), V::sub(ay, oy), V::sub(az, oz), shx, shy);
-                const auto vb = F::shear(V::sub(bx, ox), V::sub(by, oy), V::sub(bz, oz), shx, shy);
-                const auto vc = F::shear(V::sub(cx, ox), V::sub(cy, oy), V::sub(cz, oz), shx, shy);
+                const __m512 rox = at(OX), roy = at(OY), roz = at(OZ), shx = at(SX), shy = at(SY);
+                const auto va = F::shear(V::sub(ax, rox), V::sub(ay, roy), V::sub(az, roz), shx, shy);
+                const auto vb = F::shear(V::sub(bx, rox), V::sub(by, roy), V::sub(bz, roz), shx, shy);
+                const auto vc = F::shear(V::sub(cx, rox), V::sub(cy, roy), V::sub(cz, roz), shx, shy);
                 const __mmask16 keep = __mmask16(~F::rejects(va, vb, vc) & valid & (two ? 0xffffu : 0x00ffu));
                 _mm512_storeu_si512(lane + count, _mm512_maskz_compress_epi32(keep, sel));
                 _mm512_storeu_si512(tri + count, _mm512_maskz_compress_epi32(keep, tri16));

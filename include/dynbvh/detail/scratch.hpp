@@ -62,11 +62,15 @@ public:
                 return p;
             }
         }
-        void* p = std::aligned_alloc(alignment, size);
+        // A cached size gets an eighth more room: arrays sized by the tree (its node count) vary a little
+        // from frame to frame, and the next frame's slightly larger request then still fits this block
+        // (untouched pages of the margin are never faulted in).
+        const std::size_t block = size >= min_cached ? rounded(size + size / 8) : size;
+        void* p = std::aligned_alloc(alignment, block);
         if (!p) throw std::bad_alloc();
         if (size >= min_cached) {
             std::lock_guard lock(mutex_);
-            sizes_.push_back({p, size});
+            sizes_.push_back({p, block});
         }
         return p;
     }
