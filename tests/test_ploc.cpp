@@ -233,6 +233,13 @@ TEST_CASE("ploc: refs end up in Morton order, and the first iteration merges mut
 /// parity of the lower position, lower position); mutual best pairs merge into node (first leaf of the
 /// higher cluster) - 1; an iteration merging fewer than clusters / 64 pairs (or none) pairs up positions
 /// (0,1), (2,3), ...
+/// `n` right triangles growing with the index, each containing the one before.
+std::vector<Trianglef> nested(int n) {
+    std::vector<Trianglef> t;
+    for (int i = 0; i < n; ++i) t.push_back({{-1.0f - i, -1.0f - i, 0}, {2.0f + 2 * i, -1.0f - i, 0}, {-1.0f - i, 2.0f + 2 * i, 0}});
+    return t;
+}
+
 /// The clusters of the plain PLOCs below: tree ids, first leaves, boxes, in Morton order.
 struct PlainClusters {
     std::vector<std::uint32_t> ids, first;
@@ -356,11 +363,7 @@ TEST_CASE("ploc: the original schedule's tree equals a plain serial PLOC, on eve
         {"soup", random_soup(12000, 15)},
         {"flat", flat_scene(5000, 16)},
         {"identical", identical(3000)},
-        {"nested", [] {
-             std::vector<Trianglef> t;
-             for (int i = 0; i < 3000; ++i) t.push_back({{-1.0f - i, -1.0f - i, 0}, {2.0f + 2 * i, -1.0f - i, 0}, {-1.0f - i, 2.0f + 2 * i, 0}});
-             return t;
-         }()},
+        {"nested", nested(3000)},
     };
     for (const auto& scene : scenes) {
         const std::string name = scene.first;
@@ -386,11 +389,7 @@ TEST_CASE("ploc: the hierarchical schedule's tree equals a plain serial H-PLOC, 
         {"soup", random_soup(test::sanitized() ? 6000 : 20000, 15)},
         {"flat", flat_scene(5000, 16)},
         {"identical", identical(3000)},
-        {"nested", [] {
-             std::vector<Trianglef> t;
-             for (int i = 0; i < 3000; ++i) t.push_back({{-1.0f - i, -1.0f - i, 0}, {2.0f + 2 * i, -1.0f - i, 0}, {-1.0f - i, 2.0f + 2 * i, 0}});
-             return t;
-         }()},
+        {"nested", nested(3000)},
         {"three", random_soup(3, 22)},
     };
     for (const auto& [name, tris] : scenes) {

@@ -70,13 +70,20 @@ TEST_CASE("scratch: the cache threshold applies to the rounded size (min_cached 
     release_scratch();
     // min_cached - 4 bytes: exactly min_cached once rounded to 64 bytes
     constexpr std::size_t n = detail::ScratchPool::min_cached / sizeof(std::uint32_t) - 1;
+    constexpr std::size_t block = detail::ScratchPool::block_size(detail::ScratchPool::min_cached);
+    static_assert(block == detail::ScratchPool::min_cached / 8 * 9);
     { scratch_vector<std::uint32_t> v(n); }
-    CHECK(scratch_cached_bytes() == detail::ScratchPool::min_cached);   // returned to the cache, at its real size
+    CHECK(scratch_cached_bytes() == block);   // returned to the cache, at its real size (an eighth more room)
     {
         scratch_vector<std::uint32_t> v(n);
         CHECK(scratch_cached_bytes() == 0);   // the next frame's array of the same size comes from the cache
     }
-    CHECK(scratch_cached_bytes() == detail::ScratchPool::min_cached);
+    CHECK(scratch_cached_bytes() == block);
+    {
+        scratch_vector<std::uint32_t> v(block / sizeof(std::uint32_t));   // a request that needs the whole margin fits too
+        CHECK(scratch_cached_bytes() == 0);
+    }
+    CHECK(scratch_cached_bytes() == block);
     // Below the threshold once rounded (min_cached - 64 bytes): not cached, freed.
     release_scratch();
     { scratch_vector<std::uint32_t> v(n - 16); }

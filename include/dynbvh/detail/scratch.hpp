@@ -45,6 +45,11 @@ public:
     static constexpr std::size_t rounded(std::size_t bytes) noexcept {
         return bytes == 0 ? alignment : (bytes + alignment - 1) / alignment * alignment;
     }
+    /// Bytes of a fresh cached block for a request of `size` (rounded, at least min_cached): an eighth
+    /// more room, since arrays sized by the tree (its node count) vary a little from frame to frame and
+    /// the next frame's slightly larger request then still fits the block (untouched pages of the margin
+    /// are never faulted in).
+    static constexpr std::size_t block_size(std::size_t size) noexcept { return rounded(size + size / 8); }
     void* take(std::size_t bytes) {
         const std::size_t size = rounded(bytes);
         if (size >= min_cached) {
@@ -62,10 +67,7 @@ public:
                 return p;
             }
         }
-        // A cached size gets an eighth more room: arrays sized by the tree (its node count) vary a little
-        // from frame to frame, and the next frame's slightly larger request then still fits this block
-        // (untouched pages of the margin are never faulted in).
-        const std::size_t block = size >= min_cached ? rounded(size + size / 8) : size;
+        const std::size_t block = size >= min_cached ? block_size(size) : size;
         void* p = std::aligned_alloc(alignment, block);
         if (!p) throw std::bad_alloc();
         if (size >= min_cached) {
