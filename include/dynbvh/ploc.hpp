@@ -150,6 +150,36 @@ inline void nearest_scalar(const T* const* box, std::size_t c, std::size_t r, st
 }
 
 #if defined(__AVX512F__) && !defined(DYNBVH_NO_SIMD)
+namespace simd16 {
+// (the zero-masked forms: GCC 12 warns about the undefined source operand of _mm512_min_ps and the like)
+inline __m512 max(__m512 x, __m512 y) noexcept { return _mm512_maskz_max_ps(__mmask16(0xffff), x, y); }
+inline __m512 min(__m512 x, __m512 y) noexcept { return _mm512_maskz_min_ps(__mmask16(0xffff), x, y); }
+
+/// merged_half_area(lo, hi) of 16 pairs of boxes (min x, y, z, max x, y, z), lo the lower position: the
+/// same operands and operations, so the same bits; as integers (non-negative float bits order like the values).
+inline __m512i merged_half_area(const __m512 (&lo)[6], const __m512 (&hi)[6]) noexcept {
+    const __m512 dx = _mm512_sub_ps(max(hi[3], lo[3]), min(hi[0], lo[0]));
+    const __m512 dy = _mm512_sub_ps(max(hi[4], lo[4]), min(hi[1], lo[1]));
+    const __m512 dz = _mm512_sub_ps(max(hi[5], lo[5]), min(hi[2], lo[2]));
+    return _mm512_castps_si512(_mm512_add_ps(_mm512_add_ps(_mm512_mul_ps(dx, dy), _mm512_mul_ps(dy, dz)), _mm512_mul_ps(dz, dx)));
+}
+
+/// One window offset k of the neighbour search: lane m's left pair (m - k, m) at distance `dl` and right
+/// pair (m, m + k) at `dr` (all ones where absent) offered to its best so far in candidate_key's order:
+/// at equal distance the left pair, unless k is odd and m even (`even`: then the right pair's lower
+/// position has parity 0); an earlier k wins a tie with the best so far.
+inline void offer(std::size_t k, __mmask16 even, __m512i m, __m512i dl, __m512i dr, __m512i& best_d, __m512i& best_p) noexcept {
+    const __m512i kk = _mm512_set1_epi32(int(k));
+    const __mmask16 right_first = (k & 1) ? even : __mmask16(0);
+    const __mmask16 take_r = _mm512_cmplt_epu32_mask(dr, dl) | (_mm512_cmpeq_epi32_mask(dr, dl) & right_first);
+    const __m512i d = _mm512_mask_blend_epi32(take_r, dl, dr);
+    const __m512i p = _mm512_mask_blend_epi32(take_r, _mm512_sub_epi32(m, kk), _mm512_add_epi32(m, kk));
+    const __mmask16 better = _mm512_cmplt_epu32_mask(d, best_d);
+    best_d = _mm512_mask_blend_epi32(better, best_d, d);
+    best_p = _mm512_mask_blend_epi32(better, best_p, p);
+}
+} // namespace simd16
+
 /// nearest_scalar's answers, 16 positions per SIMD step (AVX-512, float boxes). For each k = 1..r in
 /// turn, lane m computes the distances of its pairs (m - k, m) and (m, m + k) (the same operands and
 /// operations as merged_half_area, so the same bits), picks the one candidate_key orders first at
@@ -159,15 +189,6 @@ inline void nearest_simd(const float* const* box, std::size_t c, std::size_t r, 
     const __m512i iota = _mm512_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
     const __m512i cnt = _mm512_set1_epi32(int(c)), end = _mm512_set1_epi32(int(b)), all = _mm512_set1_epi32(-1);
     const __m512i one = _mm512_set1_epi32(1);
-    // (the zero-masked forms: GCC 12 warns about the undefined source operand of _mm512_min_ps)
-    auto mx = [](__m512 x, __m512 y) { return _mm512_maskz_max_ps(__mmask16(0xffff), x, y); };
-    auto mn = [](__m512 x, __m512 y) { return _mm512_maskz_min_ps(__mmask16(0xffff), x, y); };
-    auto dist = [&](const __m512 (&lo)[6], const __m512 (&hi)[6]) {   // merged_half_area(lo, hi), lo the lower position
-        const __m512 dx = _mm512_sub_ps(mx(hi[3], lo[3]), mn(hi[0], lo[0]));
-        const __m512 dy = _mm512_sub_ps(mx(hi[4], lo[4]), mn(hi[1], lo[1]));
-        const __m512 dz = _mm512_sub_ps(mx(hi[5], lo[5]), mn(hi[2], lo[2]));
-        return _mm512_castps_si512(_mm512_add_ps(_mm512_add_ps(_mm512_mul_ps(dx, dy), _mm512_mul_ps(dy, dz)), _mm512_mul_ps(dz, dx)));
-    };
     for (std::size_t m0 = a; m0 < b; m0 += 16) {
         const __m512i m = _mm512_add_epi32(_mm512_set1_epi32(int(m0)), iota);
         const __mmask16 live = _mm512_cmplt_epi32_mask(m, end);
@@ -182,29 +203,32 @@ inline void nearest_simd(const float* const* box, std::size_t c, std::size_t r, 
             const __mmask16 has_l = _mm512_mask_cmpge_epi32_mask(live, m, kk);
             __m512 other[6];
             for (int q = 0; q < 6; ++q) other[q] = _mm512_maskz_loadu_ps(has_r, box[q] + m0 + k);
-            const __m512i dr = _mm512_mask_blend_epi32(has_r, all, dist(self, other));
+            const __m512i dr = _mm512_mask_blend_epi32(has_r, all, simd16::merged_half_area(self, other));
             if (has_l) {   // (m0 - k may be below 0 in the first lanes: those are masked off)
                 for (int q = 0; q < 6; ++q) other[q] = _mm512_maskz_loadu_ps(has_l, box[q] + std::ptrdiff_t(m0) - std::ptrdiff_t(k));
             }
-            const __m512i dl = has_l ? _mm512_mask_blend_epi32(has_l, all, dist(other, self)) : all;
-            const __mmask16 right_first = (k & 1) ? even : __mmask16(0);
-            const __mmask16 take_r = _mm512_cmplt_epu32_mask(dr, dl) | (_mm512_cmpeq_epi32_mask(dr, dl) & right_first);
-            const __m512i d = _mm512_mask_blend_epi32(take_r, dl, dr);
-            const __m512i p = _mm512_mask_blend_epi32(take_r, _mm512_sub_epi32(m, kk), _mm512_add_epi32(m, kk));
-            const __mmask16 better = _mm512_cmplt_epu32_mask(d, best_d);
-            best_d = _mm512_mask_blend_epi32(better, best_d, d);
-            best_p = _mm512_mask_blend_epi32(better, best_p, p);
+            const __m512i dl = has_l ? _mm512_mask_blend_epi32(has_l, all, simd16::merged_half_area(other, self)) : all;
+            simd16::offer(k, even, m, dl, dr, best_d, best_p);
         }
         _mm512_mask_storeu_epi32(nn + (m0 - a), live, best_p);
     }
 }
 #endif
 
-/// Facts of a cluster's subtree apart from its box (16 bytes: they travel with the cluster).
-struct ClusterFacts {
-    float cost;
-    std::uint32_t refs, size, height;   // height: bit 31 set when collapsed
-};
+/// Nearest neighbours of positions [a, b) of `c` clusters into nn[0 .. b - a): nearest_simd with AVX-512
+/// and float boxes, else nearest_scalar (`keys`: its scratch, b - a entries).
+template <class T>
+inline void nearest(const T* const* box, std::size_t c, std::size_t r, std::size_t a, std::size_t b, std::uint32_t* nn,
+                    std::uint64_t* keys) noexcept {
+#if defined(__AVX512F__) && !defined(DYNBVH_NO_SIMD)
+    if constexpr (std::is_same_v<T, float>) {
+        (void)keys;
+        nearest_simd(box, c, r, a, b, nn);
+        return;
+    }
+#endif
+    nearest_scalar(box, c, r, a, b, nn, keys);
+}
 
 /// The clustering state: the live clusters in Morton order, as tree node ids with their boxes (structure
 /// of arrays, for the SIMD neighbour search) and first leaves, and with the facts of their subtrees when
@@ -256,7 +280,11 @@ public:
     }
 
 private:
-    using Facts = ClusterFacts;
+    /// Facts of a cluster's subtree apart from its box (16 bytes: they travel with the cluster).
+    struct Facts {
+        float cost;
+        std::uint32_t refs, size, height;   // height: bit 31 set when collapsed
+    };
 
     /// One PLOC iteration over fixed chunks of the clusters, in two parallel passes: (A) each chunk
     /// finds the nearest neighbours of its clusters and of the `radius` on either side of it, keeps the
@@ -316,19 +344,6 @@ private:
 #else
     static constexpr bool simd_search = false;
 #endif
-
-    /// Nearest neighbours of positions [a, b) into nn[0 .. b - a) (`keys`: the plain search's scratch).
-    static void nearest(const T* const* box, std::size_t c, std::size_t r, std::size_t a, std::size_t b, std::uint32_t* nn,
-                        std::uint64_t* keys) {
-#if defined(__AVX512F__) && !defined(DYNBVH_NO_SIMD)
-        if constexpr (simd_search) {
-            (void)keys;
-            nearest_simd(box, c, r, a, b, nn);
-            return;
-        }
-#endif
-        if constexpr (!simd_search) nearest_scalar(box, c, r, a, b, nn, keys);
-    }
 
     /// Pass B over clusters [lo, hi): survivor i goes to position `pos` onwards (in adjacent mode, i / 2);
     /// a merge of i with j > i becomes inner node first_leaf(j) - 1. Clusters keep the Morton order of
@@ -610,12 +625,7 @@ private:
         const T* const b0 = s.box.data() + base;
         const T* const box[6] = {b0, b0 + s.cap, b0 + 2 * s.cap, b0 + 3 * s.cap, b0 + 4 * s.cap, b0 + 5 * s.cap};
         std::uint32_t* const nn = s.nn.data();
-#if defined(__AVX512F__) && !defined(DYNBVH_NO_SIMD)
-        if constexpr (std::is_same_v<T, float>) nearest_simd(box, c, radius_, 0, c, nn);
-        else nearest_scalar(box, c, radius_, 0, c, nn, s.keys.data());
-#else
-        nearest_scalar(box, c, radius_, 0, c, nn, s.keys.data());
-#endif
+        nearest(box, c, radius_, 0, c, nn, s.keys.data());
         std::size_t pos = base;
         for (std::size_t i = 0; i < c; ++i) {
             const std::size_t j = nn[i];
@@ -651,8 +661,6 @@ private:
         const __m512i iota = _mm512_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
         const __m512i all = _mm512_set1_epi32(-1), one = _mm512_set1_epi32(1);
         const __m512i flag = _mm512_set1_epi32(int(0x80000000u)), low31 = _mm512_set1_epi32(0x7fffffff);
-        auto mx = [](__m512 x, __m512 y) { return _mm512_maskz_max_ps(__mmask16(0xffff), x, y); };   // (as nearest_simd)
-        auto mn = [](__m512 x, __m512 y) { return _mm512_maskz_min_ps(__mmask16(0xffff), x, y); };
         auto pf = [](__m512i i, __m512 x) { return _mm512_maskz_permutexvar_ps(__mmask16(0xffff), i, x); };
         auto pi = [](__m512i i, __m512i x) { return _mm512_maskz_permutexvar_epi32(__mmask16(0xffff), i, x); };
         auto live_of = [](std::size_t k) { return __mmask16(k >= 16 ? 0xffffu : (1u << k) - 1u); };
@@ -679,22 +687,11 @@ private:
                 const __mmask16 has_r = _mm512_mask_cmplt_epi32_mask(live, up, cnt);
                 __m512 o[6];
                 for (int q = 0; q < 6; ++q) o[q] = pf(up, b[q]);
-                const __m512 dx = _mm512_sub_ps(mx(o[3], b[3]), mn(o[0], b[0]));
-                const __m512 dy = _mm512_sub_ps(mx(o[4], b[4]), mn(o[1], b[1]));
-                const __m512 dz = _mm512_sub_ps(mx(o[5], b[5]), mn(o[2], b[2]));
-                const __m512i dist = _mm512_castps_si512(
-                    _mm512_add_ps(_mm512_add_ps(_mm512_mul_ps(dx, dy), _mm512_mul_ps(dy, dz)), _mm512_mul_ps(dz, dx)));
-                const __m512i dr = _mm512_mask_blend_epi32(has_r, all, dist);
+                const __m512i dr = _mm512_mask_blend_epi32(has_r, all, simd16::merged_half_area(b, o));
                 // the left pair (m - k, m) is lane m - k's right pair
                 const __mmask16 has_l = _mm512_mask_cmpge_epi32_mask(live, iota, kk);
                 const __m512i dl = _mm512_mask_blend_epi32(has_l, all, pi(_mm512_sub_epi32(iota, kk), dr));
-                const __mmask16 right_first = (k & 1) ? even : __mmask16(0);
-                const __mmask16 take_r = _mm512_cmplt_epu32_mask(dr, dl) | (_mm512_cmpeq_epi32_mask(dr, dl) & right_first);
-                const __m512i d = _mm512_mask_blend_epi32(take_r, dl, dr);
-                const __m512i p = _mm512_mask_blend_epi32(take_r, _mm512_sub_epi32(iota, kk), up);
-                const __mmask16 better = _mm512_cmplt_epu32_mask(d, best_d);
-                best_d = _mm512_mask_blend_epi32(better, best_d, d);
-                best_p = _mm512_mask_blend_epi32(better, best_p, p);
+                simd16::offer(k, even, iota, dl, dr, best_d, best_p);
             }
             // Mutual pairs: the lower end makes the node, the higher end disappears.
             const __mmask16 mutual = _mm512_mask_cmpeq_epi32_mask(live, pi(best_p, best_p), iota);
@@ -702,8 +699,8 @@ private:
             const __mmask16 higher = mutual & __mmask16(~lower);
             // Every lane's merge with its partner (CollapseRule::parent), kept where lower.
             __m512 nb[6];
-            for (int q = 0; q < 3; ++q) nb[q] = mn(pf(best_p, b[q]), b[q]);
-            for (int q = 3; q < 6; ++q) nb[q] = mx(pf(best_p, b[q]), b[q]);
+            for (int q = 0; q < 3; ++q) nb[q] = simd16::min(pf(best_p, b[q]), b[q]);
+            for (int q = 3; q < 6; ++q) nb[q] = simd16::max(pf(best_p, b[q]), b[q]);
             const __m512 ex_ = _mm512_sub_ps(nb[3], nb[0]), ey = _mm512_sub_ps(nb[4], nb[1]), ez = _mm512_sub_ps(nb[5], nb[2]);
             const __m512 area = _mm512_add_ps(_mm512_add_ps(_mm512_mul_ps(ex_, ey), _mm512_mul_ps(ey, ez)), _mm512_mul_ps(ez, ex_));
             const __m512i mrefs = _mm512_add_epi32(refs, pi(best_p, refs));
