@@ -306,7 +306,10 @@ TEST_CASE("mesh view: every builder gives the span's tree, bit for bit (binary, 
         constexpr bool serial = std::is_same_v<E, exec::serial>;
         if constexpr (std::is_same_v<E, exec::tbb> || (serial && !has_executor<exec::tbb>)) compare_builds<0, prim::copied>(m, ex);
         if constexpr ((!serial && !std::is_same_v<E, exec::tbb>) || (serial && !has_executor<exec::omp>)) compare_builds<8, prim::indexed>(m, ex);
-        if constexpr (serial) {
+        // (sanitized builds: the binary copied and 8-wide indexed pairs only, which read the view on
+        // both paths; the other two read it through the same code, and test_emit_wide runs their
+        // emission there; CI time)
+        if constexpr (serial && !sanitized_build) {
             compare_builds<0, prim::indexed>(m, ex);
             compare_builds<4, prim::copied>(m, ex);
         }
